@@ -1,0 +1,72 @@
+# SPDX-License-Identifier: Apache-2.0
+# SPDX-FileCopyrightText: 2026 ds3d authors
+# ds3d developer entry points. Every target installs missing Debian packages first
+# (scripts/install-deps.sh) and is idempotent.
+#   make demo        Release build in build/ and run the demo on generated data
+#   make test        build + ctest + pytest + out-of-tree consumer against an installed copy
+#   make test-asan   Debug + AddressSanitizer + UBSan build in build-asan/ and its ctest
+#   make bench       every Google Benchmark binary -> bench/results/<name>.json + summary.md
+#   make format / format-check / tidy
+PYTHON      ?= /usr/bin/python3
+BUILD_DIR   ?= build
+ASAN_DIR    ?= build-asan
+JOBS        ?= $(shell nproc)
+GENERATOR   ?= Ninja
+CMAKE_FLAGS ?=
+ifeq ($(CI),true)
+  CMAKE_FLAGS += -DDS3D_WERROR=ON
+endif
+
+.PHONY: all deps configure build demo test test-cpp test-python test-consumer test-asan bench \
+        format format-check tidy clean
+
+all: build
+
+deps:
+	@scripts/install-deps.sh
+
+$(BUILD_DIR)/CMakeCache.txt: | deps
+	cmake -S . -B $(BUILD_DIR) -G $(GENERATOR) -DCMAKE_BUILD_TYPE=Release \
+	  -DPython_EXECUTABLE=$(PYTHON) $(CMAKE_FLAGS)
+
+configure: deps $(BUILD_DIR)/CMakeCache.txt
+
+build: configure
+	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+demo: build
+	$(BUILD_DIR)/bin/ds3d-demo --out $(BUILD_DIR)/demo_out
+
+test: build test-cpp test-python test-consumer
+	@echo "make test: all suites passed"
+
+test-cpp: build
+	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
+
+test-python: build
+	PYTHONPATH=$(CURDIR)/$(BUILD_DIR)/python $(PYTHON) -m pytest -q python/tests
+
+test-consumer: build
+	scripts/test-consumer.sh $(BUILD_DIR)
+
+test-asan: deps
+	cmake -S . -B $(ASAN_DIR) -G $(GENERATOR) -DCMAKE_BUILD_TYPE=Debug -DDS3D_SANITIZE=ON \
+	  -DDS3D_BUILD_PYTHON=OFF -DDS3D_BUILD_BENCH=OFF -DPython_EXECUTABLE=$(PYTHON) $(CMAKE_FLAGS)
+	cmake --build $(ASAN_DIR) -j $(JOBS)
+	cd $(ASAN_DIR) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
+	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ctest --output-on-failure -j $(JOBS)
+
+bench: build
+	$(PYTHON) scripts/run_bench.py --build-dir $(BUILD_DIR) --out bench/results
+
+format:
+	scripts/format.sh fix
+
+format-check: deps
+	scripts/format.sh check
+
+tidy: configure
+	scripts/format.sh tidy $(BUILD_DIR)
+
+clean:
+	rm -rf $(BUILD_DIR) $(ASAN_DIR)

@@ -1,0 +1,28 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#pragma once
+/// @file build_info.hpp
+/// @brief What the compiled part of ds3d (`ds3d::slam`) was built with. Needs target ds3d::slam.
+
+#include <string>
+
+namespace ds3d {
+
+/// Versions and settings of the compiled library.
+struct BuildInfo {
+  std::string ds3d_version;    ///< "MAJOR.MINOR.PATCH"
+  std::string opencv_version;  ///< OpenCV the library was compiled against
+  std::string ceres_version;   ///< Ceres Solver the library was compiled against
+  std::string eigen_version;   ///< Eigen "WORLD.MAJOR.MINOR"
+  std::string compiler;        ///< compiler id and version
+  bool debug = false;          ///< true when built without NDEBUG
+  int hardware_threads = 0;    ///< std::thread::hardware_concurrency() on this machine
+};
+
+/// Returns the build information of the linked ds3d::slam library. Never throws.
+[[nodiscard]] BuildInfo build_info();
+
+/// One-line human-readable summary of build_info().
+[[nodiscard]] std::string build_info_string();
+
+}  // namespace ds3d

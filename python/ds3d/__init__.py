@@ -1,0 +1,13 @@
+# SPDX-License-Identifier: Apache-2.0
+# SPDX-FileCopyrightText: 2026 ds3d authors
+"""ds3d: dynamic-feature removal for RGB-D SLAM (the 3DS-SLAM method as a toolkit).
+
+The compiled core lives in ``ds3d._ds3d`` (pybind11); this package re-exports it and adds
+pure-Python conveniences. C++ exceptions map to Python as follows:
+``ds3d::InvalidArgument`` -> ``ValueError``; ``ds3d::IoError`` and ``ds3d::NumericalError`` ->
+``RuntimeError``.
+"""
+from ._ds3d import __version__  # noqa: F401
+from ._ds3d import *  # noqa: F401,F403
+
+__all__ = ["__version__"]

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: Apache-2.0
+# SPDX-FileCopyrightText: 2026 ds3d authors
+# Installs the build in BUILD_DIR into a temporary prefix and builds examples/consumer/ against it
+# with find_package(ds3d); also checks that a header-only install (no SLAM) serves ds3d::core and
+# that asking it for COMPONENTS slam fails cleanly at configure time.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD_DIR=${1:-build}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+echo "consumer: installing ${BUILD_DIR} into ${tmp}/prefix"
+cmake --install "${BUILD_DIR}" --prefix "${tmp}/prefix" >/dev/null
+for example in consumer ${DS3D_EXTRA_CONSUMERS:-}; do
+  cmake -S "examples/${example}" -B "${tmp}/build-${example}" -G Ninja \
+    -DCMAKE_PREFIX_PATH="${tmp}/prefix" -DCONSUMER_COMPONENTS=slam >/dev/null
+  cmake --build "${tmp}/build-${example}" >/dev/null
+done
+"${tmp}/build-consumer/app"
+"${tmp}/build-consumer/app_core"
+
+echo "consumer: header-only install (DS3D_BUILD_SLAM=OFF)"
+cmake -S . -B "${tmp}/core-build" -G Ninja -DDS3D_BUILD_SLAM=OFF -DDS3D_BUILD_TESTS=OFF \
+  -DDS3D_BUILD_BENCH=OFF -DDS3D_BUILD_PYTHON=OFF -DDS3D_BUILD_TOOLS=OFF >/dev/null
+cmake --install "${tmp}/core-build" --prefix "${tmp}/core-prefix" >/dev/null
+cmake -S examples/consumer -B "${tmp}/build-core" -G Ninja -DCMAKE_PREFIX_PATH="${tmp}/core-prefix" \
+  -DCONSUMER_CORE_ONLY=ON >/dev/null
+cmake --build "${tmp}/build-core" >/dev/null
+"${tmp}/build-core/app_core"
+if cmake -S examples/consumer -B "${tmp}/build-core-slam" -G Ninja \
+     -DCMAKE_PREFIX_PATH="${tmp}/core-prefix" -DCONSUMER_CORE_ONLY=ON -DCONSUMER_COMPONENTS=slam \
+     >"${tmp}/slam.log" 2>&1; then
+  echo "consumer: FAILED: COMPONENTS slam was accepted by a build without SLAM" >&2
+  exit 1
+fi
+grep -q "ds3d" "${tmp}/slam.log"
+echo "consumer: COMPONENTS slam correctly refused by the header-only install"
+echo "consumer: OK"
