@@ -14,6 +14,14 @@ PACKAGES=(
   python3-setuptools python3-pip python3-wheel
   clang-format clang-tidy
 )
+# Per-component package lists: every non-comment word in scripts/deps/*.txt.
+for list in "$(dirname "$0")"/deps/*.txt; do
+  [[ -f "$list" ]] || continue
+  while read -r line; do
+    line=${line%%#*}
+    for word in $line; do PACKAGES+=("$word"); done
+  done <"$list"
+done
 # Extra packages requested by the caller (e.g. make bench-compare adds libopen3d-dev libpcl-dev).
 if [[ -n "${DS3D_EXTRA_PACKAGES:-}" ]]; then
   read -r -a extra <<<"${DS3D_EXTRA_PACKAGES}"

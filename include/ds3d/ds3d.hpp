@@ -5,6 +5,7 @@
 /// @brief Umbrella header for the header-only core (`ds3d::core`: Eigen + nanoflann only).
 /// The SLAM front-end (OpenCV + Ceres, target `ds3d::slam`) has its own headers.
 
+#include "ds3d/camera.hpp"
 #include "ds3d/cloud.hpp"
 #include "ds3d/errors.hpp"
 #include "ds3d/version.hpp"
