@@ -19,17 +19,17 @@ namespace ds3d {
 
 /// Intrinsics of a pinhole camera with optional radial-tangential distortion.
 struct PinholeCamera {
-  double fx = 525.0;           ///< focal length along u [px], > 0
-  double fy = 525.0;           ///< focal length along v [px], > 0
-  double cx = 319.5;           ///< principal point u [px]
-  double cy = 239.5;           ///< principal point v [px]
-  int width = 640;             ///< image width [px], > 0
-  int height = 480;            ///< image height [px], > 0
-  double k1 = 0.0;             ///< radial distortion coefficients (OpenCV order)
-  double k2 = 0.0;             ///<
-  double p1 = 0.0;             ///< tangential distortion coefficients
-  double p2 = 0.0;             ///<
-  double k3 = 0.0;             ///<
+  double fx = 525.0;            ///< focal length along u [px], > 0
+  double fy = 525.0;            ///< focal length along v [px], > 0
+  double cx = 319.5;            ///< principal point u [px]
+  double cy = 239.5;            ///< principal point v [px]
+  int width = 640;              ///< image width [px], > 0
+  int height = 480;             ///< image height [px], > 0
+  double k1 = 0.0;              ///< radial distortion coefficients (OpenCV order)
+  double k2 = 0.0;              ///<
+  double p1 = 0.0;              ///< tangential distortion coefficients
+  double p2 = 0.0;              ///<
+  double k3 = 0.0;              ///<
   double depth_scale = 5000.0;  ///< depth-image units per metre, > 0
 
   /// Throws ds3d::InvalidArgument naming `function` and the bad field.

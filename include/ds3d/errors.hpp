@@ -16,7 +16,8 @@
 namespace ds3d {
 
 /// A parameter or input value is outside its documented range. Message names the function,
-/// the parameter and the offending value, e.g. `ds3d::voxel_grid: leaf_size must be > 0 (got -0.1)`.
+/// the parameter and the offending value, e.g. `ds3d::voxel_grid: leaf_size must be > 0 (got
+/// -0.1)`.
 class InvalidArgument : public std::invalid_argument {
  public:
   using std::invalid_argument::invalid_argument;
@@ -50,19 +51,19 @@ template <class... Args>
 
 /// Always-on check at API boundaries: throws ds3d::InvalidArgument with the streamed message.
 /// Usage: `DS3D_CHECK(leaf > 0, "ds3d::voxel_grid: leaf_size must be > 0 (got ", leaf, ")");`
-#define DS3D_CHECK(cond, ...)                                          \
-  do {                                                                 \
-    if (!(cond)) {                                                     \
+#define DS3D_CHECK(cond, ...)                                             \
+  do {                                                                    \
+    if (!(cond)) {                                                        \
       throw ::ds3d::InvalidArgument(::ds3d::detail::concat(__VA_ARGS__)); \
-    }                                                                  \
+    }                                                                     \
   } while (false)
 
 /// Like DS3D_CHECK but throws the given exception type (IoError, NumericalError, ...).
-#define DS3D_CHECK_AS(ExceptionType, cond, ...)                           \
-  do {                                                                    \
-    if (!(cond)) {                                                        \
-      throw ExceptionType(::ds3d::detail::concat(__VA_ARGS__));           \
-    }                                                                     \
+#define DS3D_CHECK_AS(ExceptionType, cond, ...)                 \
+  do {                                                          \
+    if (!(cond)) {                                              \
+      throw ExceptionType(::ds3d::detail::concat(__VA_ARGS__)); \
+    }                                                           \
   } while (false)
 
 /// Internal invariant for hot loops; compiled out under NDEBUG.

@@ -18,7 +18,8 @@ void bind_errors(py::module_& m) {
         if (kind == "invalid_argument") throw ds3d::InvalidArgument(message);
         if (kind == "io") throw ds3d::IoError(message);
         if (kind == "numerical") throw ds3d::NumericalError(message);
-        DS3D_CHECK(false, "ds3d._raise_for_test: kind must be invalid_argument, io or numerical (got '",
+        DS3D_CHECK(false,
+                   "ds3d._raise_for_test: kind must be invalid_argument, io or numerical (got '",
                    kind, "')");
       },
       py::arg("kind"), py::arg("message"),

@@ -58,7 +58,8 @@ int main(int argc, char** argv) {
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     std::cout << "(" << s.name << ": " << ms << " ms)\n";
   }
-  std::cout << "\n" << steps.size() - static_cast<std::size_t>(failures) << " of " << steps.size()
+  std::cout << "\n"
+            << steps.size() - static_cast<std::size_t>(failures) << " of " << steps.size()
             << " demo steps succeeded\n";
   return failures == 0 ? 0 : 1;
 }
