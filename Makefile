@@ -4,6 +4,7 @@
 # (scripts/install-deps.sh) and is idempotent.
 #   make demo        Release build in build/ and run the demo on generated data
 #   make test        build + ctest + pytest + out-of-tree consumer against an installed copy
+#                    + offline pip install into a throw-away venv
 #   make test-asan   Debug + AddressSanitizer + UBSan build in build-asan/ and its ctest
 #   make bench       every Google Benchmark binary -> bench/results/<name>.json + summary.md
 #   make format / format-check / tidy
@@ -17,7 +18,7 @@ ifeq ($(CI),true)
   CMAKE_FLAGS += -DDS3D_WERROR=ON
 endif
 
-.PHONY: all deps configure build demo test test-cpp test-python test-consumer test-asan bench \
+.PHONY: all deps configure build demo test test-cpp test-python test-consumer test-pip test-asan bench \
         format format-check tidy clean
 
 all: build
@@ -37,7 +38,7 @@ build: configure
 demo: build
 	$(BUILD_DIR)/bin/ds3d-demo --out $(BUILD_DIR)/demo_out
 
-test: build test-cpp test-python test-consumer
+test: build test-cpp test-python test-consumer test-pip
 	@echo "make test: all suites passed"
 
 test-cpp: build
@@ -48,6 +49,9 @@ test-python: build
 
 test-consumer: build
 	scripts/test-consumer.sh $(BUILD_DIR)
+
+test-pip: deps
+	PYTHON=$(PYTHON) JOBS=$(JOBS) scripts/test-pip-install.sh
 
 test-asan: deps
 	cmake -S . -B $(ASAN_DIR) -G $(GENERATOR) -DCMAKE_BUILD_TYPE=Debug -DDS3D_SANITIZE=ON \

@@ -55,4 +55,6 @@ setup(
     ext_modules=[CMakeExtension("ds3d._ds3d")],
     cmdclass={"build_ext": CMakeBuild},
     zip_safe=False,
+    # Keep setuptools' own build tree inside CMake's build/ (reused by later installs).
+    options={"build": {"build_base": "build/setuptools"}},
 )

@@ -11,7 +11,7 @@ PACKAGES=(
   libeigen3-dev libnanoflann-dev libopencv-dev libceres-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   pybind11-dev python3-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib
-  python3-setuptools python3-pip python3-wheel
+  python3-setuptools python3-pip python3-wheel python3-venv
   clang-format clang-tidy
 )
 # Per-component package lists: every non-comment word in scripts/deps/*.txt.
