@@ -21,6 +21,16 @@ def fmt_time(ns):
     return f"{ns:.3g} ns"
 
 
+def cpu_model():
+    try:
+        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "cpu"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--build-dir", default="build")
@@ -40,7 +50,7 @@ def main():
         print(f"run_bench: no *_bench binaries in {bindir}", file=sys.stderr)
         return 1
     lines = ["# ds3d benchmark summary", "",
-             f"Machine: {platform.node()} ({platform.machine()}, {platform.processor() or 'cpu'}),"
+             f"Machine: {platform.node()} ({platform.machine()}, {cpu_model()}),"
              f" Python {platform.python_version()}", ""]
     for b in benches:
         path = out / f"{b.name}.json"
@@ -64,7 +74,7 @@ def main():
                          f"{'' if ips is None else f'{ips:.3g}'} |")
         ctx = data.get("context", {})
         lines += ["", f"{ctx.get('num_cpus', '?')} CPUs at {ctx.get('mhz_per_cpu', '?')} MHz, "
-                  f"library build: {ctx.get('library_build_type', '?')}", ""]
+                  f"load average {ctx.get('load_avg', '?')}", ""]
     (out / "summary.md").write_text("\n".join(lines) + "\n")
     print(f"run_bench: wrote {out}/summary.md")
     return 0
