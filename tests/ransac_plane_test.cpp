@@ -133,6 +133,27 @@ TEST(RansacPlane, NormalPriorPicksTheFloorOverALargerWall) {
   EXPECT_GE(ground.inliers.size(), 1490U);
 }
 
+TEST(RansacPlane, OriginAbovePicksTheFloorNotALargerCeiling) {
+  ds3d::test::Rng rng(43);
+  Points3f ceiling = ds3d::test::plane_points(3000, 2.0, 0.002, rng);
+  ceiling.col(1).swap(ceiling.col(2));
+  ceiling.col(1).array() -= 1.4F;  // y = -1.4: above the camera (y points down)
+  Points3f floor = ds3d::test::plane_points(1500, 2.0, 0.002, rng);
+  floor.col(1).swap(floor.col(2));
+  floor.col(1).array() += 1.2F;  // y = 1.2: below the camera
+  Points3f p(4500, 3);
+  p << ceiling, floor;
+  RansacPlaneParams prior;
+  prior.normal_prior = {0, -1, 0};
+  const auto either = ds3d::ransac_plane(p, prior);
+  EXPECT_NEAR(either.plane[3], -1.4, 0.01);  // most inliers
+  prior.origin_above = true;
+  const auto ground = ds3d::ransac_plane(p, prior);
+  ASSERT_TRUE(ground.found);
+  EXPECT_NEAR(ground.plane[3], 1.2, 0.01);
+  EXPECT_GE(ground.inliers.size(), 1490U);
+}
+
 TEST(RansacPlane, ConfidenceOneRunsEveryIteration) {
   ds3d::test::Rng rng(51);
   const Points3f p = ds3d::test::plane_points(500, 1.0, 0.001, rng);

@@ -36,6 +36,9 @@ struct RansacPlaneParams {
   /// ±normal_prior are accepted, and the returned normal points along normal_prior.
   Eigen::Vector3d normal_prior = Eigen::Vector3d::Zero();
   double max_angle_deg = 20.0;  ///< tolerance of the normal prior [deg], in (0, 90]
+  /// With a normal prior: also require the origin (the sensor, for camera-frame clouds) to lie on
+  /// the +normal_prior side of the plane, so a floor below the camera is chosen, not a ceiling.
+  bool origin_above = false;
   /// Least-squares refit + re-selection rounds after RANSAC (0 = return the best hypothesis).
   std::uint32_t refine_iterations = 3;
   NonFinite on_non_finite = NonFinite::kSkip;  ///< kSkip: never inliers, counted; kThrow: throw

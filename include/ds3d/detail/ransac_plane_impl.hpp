@@ -84,6 +84,12 @@ RansacPlaneResult ransac_plane(const C& cloud, const RansacPlaneParams& params) 
   const double t = params.distance_threshold;
   const auto tf = static_cast<float>(t);
 
+  const bool origin_above = use_prior && params.origin_above;
+  // Signed side of the origin for a plane in the centred frame (origin is at -centre there).
+  auto origin_on_up_side = [&](const Eigen::Vector4d& pl_centred) {
+    const double side = -pl_centred.head<3>().dot(centre) + pl_centred[3];
+    return (pl_centred.head<3>().dot(up) >= 0.0 ? side : -side) > 0.0;
+  };
   // Hypothesis of iteration `it`, in the centred frame; false when degenerate or off-prior.
   auto hypothesis = [&](std::uint32_t it, Eigen::Vector4d& plane) {
     detail::SplitMix64 rng{params.seed ^ (0xD1B54A32D192ED03ULL * (std::uint64_t{it} + 1))};
@@ -105,6 +111,7 @@ RansacPlaneResult ransac_plane(const C& cloud, const RansacPlaneParams& params) 
     normal /= len;
     if (use_prior && std::abs(normal.dot(up)) < cos_tol) return false;
     plane << normal, -normal.dot(p0);
+    if (origin_above && !origin_on_up_side(plane)) return false;
     return true;
   };
 
@@ -185,6 +192,7 @@ RansacPlaneResult ransac_plane(const C& cloud, const RansacPlaneParams& params) 
     if (use_prior && std::abs(normal.dot(up)) < cos_tol) break;
     Eigen::Vector4d refit;
     refit << normal, -normal.dot(mean + centre);
+    if (origin_above && (normal.dot(up) >= 0.0 ? refit[3] : -refit[3]) <= 0.0) break;
     select(refit, cand);
     if (cand.size() < inl.size()) break;
     const bool same = cand == inl;
