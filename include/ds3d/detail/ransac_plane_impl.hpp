@@ -1,0 +1,220 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#pragma once
+// Implementation of ds3d::ransac_plane (included by ransac_plane.hpp). Not API.
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Eigenvalues>
+
+#include "ds3d/detail/parallel.hpp"
+#include "ds3d/detail/voxel_key.hpp"
+#include "ds3d/ransac_plane.hpp"
+
+namespace ds3d {
+
+inline void RansacPlaneParams::validate() const {
+  const char* fn = "ds3d::ransac_plane";
+  DS3D_CHECK(std::isfinite(distance_threshold) && distance_threshold > 0, fn,
+             ": distance_threshold must be finite and > 0 (got ", distance_threshold, ")");
+  DS3D_CHECK(max_iterations >= 1, fn, ": max_iterations must be >= 1 (got ", max_iterations, ")");
+  DS3D_CHECK(confidence >= 0.0 && confidence <= 1.0, fn, ": confidence must be in [0, 1] (got ",
+             confidence, ")");
+  DS3D_CHECK(normal_prior.allFinite(), fn, ": normal_prior must be finite (got ",
+             normal_prior.x(), ", ", normal_prior.y(), ", ", normal_prior.z(), ")");
+  DS3D_CHECK(max_angle_deg > 0.0 && max_angle_deg <= 90.0, fn,
+             ": max_angle_deg must be in (0, 90] (got ", max_angle_deg, ")");
+  (void)detail::resolve_num_threads(num_threads, fn);
+}
+
+namespace detail {
+
+/// SplitMix64 (Steele, Lea & Flood 2014): a tiny seedable generator, enough to draw triples.
+struct SplitMix64 {
+  std::uint64_t state;
+  std::uint64_t next() {
+    std::uint64_t z = (state += 0x9E3779B97F4A7C15ULL);
+    z = (z ^ (z >> 30U)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27U)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31U);
+  }
+};
+
+/// Number of |n·p + d| < t among SoA points, in float (the scoring hot loop; vectorises).
+inline std::uint32_t count_plane_inliers(const float* x, const float* y, const float* z,
+                                         std::size_t n, float a, float b, float c, float d,
+                                         float t) {
+  std::uint32_t count = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float dist = a * x[i] + b * y[i] + c * z[i] + d;
+    count += std::abs(dist) < t ? 1U : 0U;
+  }
+  return count;
+}
+
+}  // namespace detail
+
+template <PointCloud C>
+RansacPlaneResult ransac_plane(const C& cloud, const RansacPlaneParams& params) {
+  constexpr const char* kFn = "ds3d::ransac_plane";
+  params.validate();
+  const int threads = detail::resolve_num_threads(params.num_threads, kFn);
+  const detail::FinitePoints f = detail::gather_finite(cloud, params.on_non_finite, kFn);
+  RansacPlaneResult r;
+  r.num_non_finite = f.num_non_finite;
+  const std::size_t n = f.size();
+  if (n < 3) return r;
+
+  // Scoring runs in float on coordinates relative to the centroid, so that far-away clouds keep
+  // their precision; the final selection is done in double on the original coordinates.
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) centre += Eigen::Vector3d(f.x[i], f.y[i], f.z[i]);
+  centre /= static_cast<double>(n);
+  std::vector<float> xs(n), ys(n), zs(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    xs[i] = static_cast<float>(f.x[i] - centre.x());
+    ys[i] = static_cast<float>(f.y[i] - centre.y());
+    zs[i] = static_cast<float>(f.z[i] - centre.z());
+  }
+  const bool use_prior = params.normal_prior.squaredNorm() > 0.0;
+  const Eigen::Vector3d up = use_prior ? params.normal_prior.normalized() : Eigen::Vector3d::Zero();
+  const double cos_tol = std::cos(params.max_angle_deg * 3.14159265358979323846 / 180.0);
+  const double t = params.distance_threshold;
+  const auto tf = static_cast<float>(t);
+
+  const bool origin_above = use_prior && params.origin_above;
+  // Signed side of the origin for a plane in the centred frame (origin is at -centre there).
+  auto origin_on_up_side = [&](const Eigen::Vector4d& pl_centred) {
+    const double side = -pl_centred.head<3>().dot(centre) + pl_centred[3];
+    return (pl_centred.head<3>().dot(up) >= 0.0 ? side : -side) > 0.0;
+  };
+  // Hypothesis of iteration `it`, in the centred frame; false when degenerate or off-prior.
+  auto hypothesis = [&](std::uint32_t it, Eigen::Vector4d& plane) {
+    detail::SplitMix64 rng{params.seed ^ (0xD1B54A32D192ED03ULL * (std::uint64_t{it} + 1))};
+    const auto nn = static_cast<std::uint64_t>(n);
+    const auto i0 = static_cast<std::size_t>(rng.next() % nn);
+    auto i1 = static_cast<std::size_t>(rng.next() % (nn - 1));
+    i1 += i1 >= i0 ? 1 : 0;
+    auto i2 = static_cast<std::size_t>(rng.next() % (nn - 2));
+    const std::size_t lo = std::min(i0, i1);
+    const std::size_t hi = std::max(i0, i1);
+    i2 += i2 >= lo ? 1 : 0;
+    i2 += i2 >= hi ? 1 : 0;
+    const Eigen::Vector3d p0(xs[i0], ys[i0], zs[i0]);
+    const Eigen::Vector3d e1 = Eigen::Vector3d(xs[i1], ys[i1], zs[i1]) - p0;
+    const Eigen::Vector3d e2 = Eigen::Vector3d(xs[i2], ys[i2], zs[i2]) - p0;
+    Eigen::Vector3d normal = e1.cross(e2);
+    const double len = normal.norm();
+    if (!(len > 1e-12 * e1.norm() * e2.norm()) || !(len > 0.0)) return false;
+    normal /= len;
+    if (use_prior && std::abs(normal.dot(up)) < cos_tol) return false;
+    plane << normal, -normal.dot(p0);
+    if (origin_above && !origin_on_up_side(plane)) return false;
+    return true;
+  };
+
+  const std::uint32_t max_it = params.max_iterations;
+  const std::size_t batch = threads == 1 ? 1 : static_cast<std::size_t>(threads) * 8;
+  std::vector<std::int64_t> scores(batch);
+  std::int64_t best_count = -1;
+  std::uint32_t best_it = 0;
+  double needed = static_cast<double>(max_it);
+  std::uint32_t it = 0;
+  bool stop = false;
+  while (!stop && it < max_it) {
+    const std::size_t nb = std::min<std::size_t>(batch, max_it - it);
+    detail::parallel_chunks(nb, nb, threads, [&](std::size_t b, std::size_t e, std::size_t) {
+      for (std::size_t k = b; k < e; ++k) {
+        Eigen::Vector4d pl;
+        if (!hypothesis(it + static_cast<std::uint32_t>(k), pl)) {
+          scores[k] = -1;
+          continue;
+        }
+        scores[k] = detail::count_plane_inliers(
+            xs.data(), ys.data(), zs.data(), n, static_cast<float>(pl[0]),
+            static_cast<float>(pl[1]), static_cast<float>(pl[2]), static_cast<float>(pl[3]), tf);
+      }
+    });
+    // Reduce in iteration order: identical to a serial run whatever the batch size.
+    for (std::size_t k = 0; k < nb; ++k) {
+      const std::uint32_t cur = it + static_cast<std::uint32_t>(k);
+      r.iterations = cur + 1;
+      if (scores[k] > best_count) {
+        best_count = scores[k];
+        best_it = cur;
+        if (params.confidence < 1.0 && best_count > 0) {
+          const double w = static_cast<double>(best_count) / static_cast<double>(n);
+          const double p_fail = 1.0 - w * w * w;
+          needed = p_fail <= 0.0 ? 1.0
+                                 : std::log(1.0 - params.confidence) / std::log(p_fail);
+        }
+      }
+      if (static_cast<double>(r.iterations) >= needed) {
+        stop = true;
+        break;
+      }
+    }
+    it += static_cast<std::uint32_t>(nb);
+  }
+  if (best_count < 0) return r;
+
+  // Plane in the original frame: n·(p - centre) + d_c = n·p + (d_c - n·centre).
+  Eigen::Vector4d plane;
+  (void)hypothesis(best_it, plane);
+  plane[3] -= plane.head<3>().dot(centre);
+  auto select = [&](const Eigen::Vector4d& pl, std::vector<std::uint32_t>& pos) {
+    pos.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      const double dist = pl[0] * f.x[i] + pl[1] * f.y[i] + pl[2] * f.z[i] + pl[3];
+      if (std::abs(dist) < t) pos.push_back(static_cast<std::uint32_t>(i));
+    }
+  };
+  std::vector<std::uint32_t> inl;
+  select(plane, inl);
+  // Least-squares refit on the inliers (smallest eigenvector of their covariance), then
+  // re-selection; a round is accepted only if it does not lose inliers.
+  std::vector<std::uint32_t> cand;
+  for (std::uint32_t round = 0; round < params.refine_iterations && inl.size() >= 3; ++round) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const std::uint32_t i : inl) mean += Eigen::Vector3d(xs[i], ys[i], zs[i]);
+    mean /= static_cast<double>(inl.size());
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (const std::uint32_t i : inl) {
+      const Eigen::Vector3d q = Eigen::Vector3d(xs[i], ys[i], zs[i]) - mean;
+      cov.noalias() += q * q.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    if (es.info() != Eigen::Success) break;
+    const Eigen::Vector3d normal = es.eigenvectors().col(0).normalized();
+    if (!normal.allFinite()) break;
+    if (use_prior && std::abs(normal.dot(up)) < cos_tol) break;
+    Eigen::Vector4d refit;
+    refit << normal, -normal.dot(mean + centre);
+    if (origin_above && (normal.dot(up) >= 0.0 ? refit[3] : -refit[3]) <= 0.0) break;
+    select(refit, cand);
+    if (cand.size() < inl.size()) break;
+    const bool same = cand == inl;
+    plane = refit;
+    inl.swap(cand);
+    if (same) break;
+  }
+
+  // Sign convention: along the prior, else the largest-magnitude normal component positive.
+  double s = 1.0;
+  if (use_prior) {
+    s = plane.head<3>().dot(up) < 0.0 ? -1.0 : 1.0;
+  } else {
+    Eigen::Index k = 0;
+    plane.head<3>().cwiseAbs().maxCoeff(&k);
+    s = plane[k] < 0.0 ? -1.0 : 1.0;
+  }
+  r.plane = s * plane;
+  r.found = true;
+  r.inliers.reserve(inl.size());
+  for (const std::uint32_t i : inl) r.inliers.push_back(f.index[i]);
+  return r;
+}
+
+}  // namespace ds3d

@@ -1,0 +1,80 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#pragma once
+/// @file voxel_grid.hpp
+/// @brief Voxel-grid down-sampling to per-voxel centroids (3DS-SLAM §III-B input compression).
+///
+/// A point's voxel is `(floor(x/dx), floor(y/dy), floor(z/dz))`: the grid is anchored at the
+/// origin (not at the cloud's bounding box, unlike Open3D's VoxelDownSample), the division is
+/// done in double and the key is a signed 64-bit integer per axis. Each occupied voxel yields the
+/// mean of its member points, accumulated in double. Output rows are sorted by key (ix, iy, iz),
+/// so the result is identical for every thread count.
+
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ds3d/cloud.hpp"
+#include "ds3d/errors.hpp"
+
+namespace ds3d {
+
+/// Voxel edge lengths [m]. Converts implicitly from one double (cubic voxels) or three.
+struct LeafSize {
+  double dx = 0.05;  ///< edge along x [m], finite and > 0
+  double dy = 0.05;  ///< edge along y [m], finite and > 0
+  double dz = 0.05;  ///< edge along z [m], finite and > 0
+  LeafSize() = default;
+  /// Cubic voxels of edge `s` [m].
+  LeafSize(double s) : dx(s), dy(s), dz(s) {}  // NOLINT(google-explicit-constructor): `.leaf_size = 0.02`
+  /// Anisotropic voxels [m].
+  LeafSize(double x, double y, double z) : dx(x), dy(y), dz(z) {}
+};
+
+/// Parameters of voxel_grid().
+struct VoxelGridParams {
+  LeafSize leaf_size{0.05};                    ///< voxel edges [m], each finite and > 0
+  std::uint32_t min_points = 1;                ///< voxels with fewer members are dropped, >= 1
+  NonFinite on_non_finite = NonFinite::kSkip;  ///< kSkip: ignore and count; kThrow: InvalidArgument
+  int num_threads = 1;                         ///< 0 = all hardware threads, < 0 is invalid
+  /// Throws ds3d::InvalidArgument naming the bad field and value.
+  void validate() const;
+};
+
+/// Output of voxel_grid(): one row per kept voxel, sorted by key (ix, iy, iz).
+struct VoxelGridResult {
+  /// Integer voxel keys, row-major M×3 (numpy (M, 3) int64).
+  using Keys = Eigen::Matrix<std::int64_t, Eigen::Dynamic, 3, Eigen::RowMajor>;
+  Points3f centroids;                         ///< mean of each voxel's members [m] (double sums)
+  Keys keys;                                  ///< (ix, iy, iz) of each voxel
+  std::vector<std::uint32_t> counts;          ///< number of member points of each voxel
+  std::vector<std::uint32_t> representative;  ///< member nearest its centroid (input index; ties: lowest)
+  std::size_t num_non_finite = 0;             ///< input points skipped as non-finite
+  std::size_t num_dropped = 0;                ///< finite points in voxels below min_points
+};
+
+/// Voxel-grid down-sampling: one centroid per occupied voxel of an origin-anchored grid.
+/// @param cloud  any PointCloud (see cloud.hpp); non-finite points are ignored and counted.
+/// @param params leaf sizes [m], min_points, non-finite policy and threads.
+/// @return centroids, keys, counts and representative input indices, sorted by key.
+/// @throws ds3d::InvalidArgument on bad params, on a voxel index whose magnitude reaches 2^62
+///         (names the coordinate and the value), on a non-finite point under kThrow, or on
+///         clouds of 2^32 - 1 points or more.
+/// @note O(n) time (radix sort on packed keys; a comparison sort when the occupied key ranges
+///       need more than 64 bits), O(n) extra memory. Identical output for every num_threads.
+template <PointCloud C>
+[[nodiscard]] VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params = {});
+
+/// Overload for a row-major N×3 float map (numpy float32, no copy).
+[[nodiscard]] inline VoxelGridResult voxel_grid(Eigen::Ref<const Points3f> xyz,
+                                                const VoxelGridParams& params = {}) {
+  return voxel_grid<Eigen::Ref<const Points3f>>(xyz, params);
+}
+
+}  // namespace ds3d
+
+#include "ds3d/detail/voxel_grid_impl.hpp"

@@ -1,0 +1,285 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// ds3d::voxel_grid against the golden fixtures, a brute-force reference and edge cases.
+#include "ds3d/voxel_grid.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <map>
+#include <vector>
+
+#include "support/preprocess_fixtures.hpp"
+#include "support/synthetic.hpp"
+
+namespace {
+
+using ds3d::Points3f;
+using ds3d::VoxelGridParams;
+using ds3d::VoxelGridResult;
+
+/// Leaf sizes of a case.json voxel output entry.
+ds3d::LeafSize leaf_of(const ds3d::detail::JsonValue& out) {
+  const auto& s = out.at("voxel_size");
+  return {s.at(0).as_number(), s.at(1).as_number(), s.at(2).as_number()};
+}
+
+void expect_matches_golden(const VoxelGridResult& r, const std::vector<ds3d::test::GoldenVoxel>& g,
+                           const std::string& what) {
+  ASSERT_EQ(static_cast<std::size_t>(r.centroids.rows()), g.size()) << what;
+  ASSERT_TRUE(r.centroids.allFinite()) << what;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    const auto row = static_cast<Eigen::Index>(i);
+    ASSERT_EQ(r.keys(row, 0), g[i].key[0]) << what << " row " << i;
+    ASSERT_EQ(r.keys(row, 1), g[i].key[1]) << what << " row " << i;
+    ASSERT_EQ(r.keys(row, 2), g[i].key[2]) << what << " row " << i;
+    ASSERT_EQ(r.counts[i], g[i].count) << what << " row " << i;
+    for (int d = 0; d < 3; ++d) {
+      const double gold = g[i].centroid[static_cast<std::size_t>(d)];
+      EXPECT_LE(std::abs(static_cast<double>(r.centroids(row, d)) - gold),
+                1e-5 + 1e-6 * std::abs(gold))
+          << what << " row " << i << " axis " << d;
+    }
+  }
+}
+
+TEST(VoxelGrid, MatchesEveryGoldenFixture) {
+  int checked = 0;
+  for (const auto& root : ds3d::test::preprocess_fixture_roots()) {
+    for (const auto& dir : ds3d::test::preprocess_cases(root)) {
+      const auto meta = ds3d::test::read_json(dir / "case.json");
+      const Points3f pts = ds3d::test::read_points_bin(dir / "input.bin");
+      ASSERT_EQ(pts.rows(), meta.at("n_points").as_int());
+      for (const auto& out : meta.at("outputs").at("voxel").as_array()) {
+        const auto file = dir / out.at("file").as_string();
+        if (!std::filesystem::exists(file)) continue;  // trimmed from the in-repo copy
+        for (const int threads : {1, 3}) {
+          VoxelGridParams p;
+          p.leaf_size = leaf_of(out);
+          p.num_threads = threads;
+          const VoxelGridResult r = ds3d::voxel_grid(pts, p);
+          expect_matches_golden(r, ds3d::test::read_voxel_csv(file), file.string());
+          EXPECT_EQ(r.num_non_finite,
+                    static_cast<std::size_t>(meta.at("n_points").as_int() -
+                                             meta.at("n_finite").as_int()));
+          // Representatives are members of their voxel.
+          for (std::size_t i = 0; i < r.representative.size(); ++i) {
+            const auto q = pts.row(r.representative[i]);
+            EXPECT_EQ(static_cast<std::int64_t>(std::floor(double(q.x()) / p.leaf_size.dx)),
+                      r.keys(static_cast<Eigen::Index>(i), 0));
+          }
+        }
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GE(checked, 15);  // the in-repo copy alone has 15 voxel outputs
+}
+
+TEST(VoxelGrid, EmptyInput) {
+  const Points3f none(0, 3);
+  const auto r = ds3d::voxel_grid(none);
+  EXPECT_EQ(r.centroids.rows(), 0);
+  EXPECT_EQ(r.keys.rows(), 0);
+  EXPECT_TRUE(r.counts.empty());
+  EXPECT_TRUE(r.representative.empty());
+}
+
+TEST(VoxelGrid, OnePoint) {
+  Points3f p(1, 3);
+  p << -0.01F, 0.26F, 1.0F;
+  const auto r = ds3d::voxel_grid(p, {.leaf_size = 0.25});
+  ASSERT_EQ(r.centroids.rows(), 1);
+  EXPECT_EQ(r.keys(0, 0), -1);
+  EXPECT_EQ(r.keys(0, 1), 1);
+  EXPECT_EQ(r.keys(0, 2), 4);
+  EXPECT_EQ(r.counts[0], 1U);
+  EXPECT_EQ(r.representative[0], 0U);
+  EXPECT_EQ(r.centroids.row(0), p.row(0));
+}
+
+TEST(VoxelGrid, AllPointsInOneVoxelAndExactDuplicates) {
+  ds3d::test::Rng rng(5);
+  Points3f p = ds3d::test::uniform_box(500, {0.1, 0.1, 0.1}, {0.9, 0.9, 0.9}, rng);
+  for (Eigen::Index i = 0; i < 100; ++i) p.row(400 + i) = p.row(7);  // exact duplicates
+  const auto r = ds3d::voxel_grid(p, {.leaf_size = 1.0});
+  ASSERT_EQ(r.centroids.rows(), 1);
+  EXPECT_EQ(r.counts[0], 500U);
+  const Eigen::Vector3d mean = p.cast<double>().colwise().mean();
+  EXPECT_NEAR(r.centroids(0, 0), mean.x(), 1e-6);
+  EXPECT_NEAR(r.centroids(0, 1), mean.y(), 1e-6);
+  EXPECT_NEAR(r.centroids(0, 2), mean.z(), 1e-6);
+  // Representative: the member nearest the centroid.
+  double best = std::numeric_limits<double>::infinity();
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    best = std::min(best, (p.row(i).cast<double>() - mean.transpose()).squaredNorm());
+  }
+  EXPECT_NEAR((p.row(r.representative[0]).cast<double>() - mean.transpose()).squaredNorm(), best,
+              1e-9);
+}
+
+TEST(VoxelGrid, MatchesBruteForce) {
+  ds3d::test::Rng rng(11);
+  const Points3f p = ds3d::test::uniform_box(20'000, {-3, -2, -0.5}, {2, 3, 4.5}, rng);
+  const ds3d::LeafSize leaf(0.13, 0.2, 0.07);
+  std::map<std::array<std::int64_t, 3>, std::pair<Eigen::Vector3d, std::uint32_t>> ref;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    const std::array<std::int64_t, 3> k{
+        static_cast<std::int64_t>(std::floor(double(p(i, 0)) / leaf.dx)),
+        static_cast<std::int64_t>(std::floor(double(p(i, 1)) / leaf.dy)),
+        static_cast<std::int64_t>(std::floor(double(p(i, 2)) / leaf.dz))};
+    auto& e = ref[k];
+    if (e.second == 0) e.first.setZero();
+    e.first += p.row(i).transpose().cast<double>();
+    ++e.second;
+  }
+  const auto r = ds3d::voxel_grid(p, {.leaf_size = leaf});
+  ASSERT_EQ(static_cast<std::size_t>(r.centroids.rows()), ref.size());
+  std::size_t i = 0;
+  for (const auto& [k, e] : ref) {
+    const auto row = static_cast<Eigen::Index>(i++);
+    ASSERT_EQ(r.keys(row, 0), k[0]);
+    ASSERT_EQ(r.keys(row, 1), k[1]);
+    ASSERT_EQ(r.keys(row, 2), k[2]);
+    ASSERT_EQ(r.counts[static_cast<std::size_t>(row)], e.second);
+    const Eigen::Vector3d mean = e.first / e.second;
+    for (int d = 0; d < 3; ++d) EXPECT_NEAR(r.centroids(row, d), mean[d], 1e-6);
+  }
+}
+
+TEST(VoxelGrid, MinPointsDropsSmallVoxels) {
+  ds3d::test::Rng rng(2);
+  const Points3f p = ds3d::test::uniform_box(3000, {0, 0, 0}, {1, 1, 1}, rng);
+  const auto all = ds3d::voxel_grid(p, {.leaf_size = 0.1});
+  const auto big = ds3d::voxel_grid(p, {.leaf_size = 0.1, .min_points = 4});
+  std::size_t kept = 0;
+  std::size_t dropped = 0;
+  for (const auto c : all.counts) (c >= 4 ? kept : dropped) += (c >= 4 ? 1 : c);
+  EXPECT_EQ(static_cast<std::size_t>(big.centroids.rows()), kept);
+  EXPECT_EQ(big.num_dropped, dropped);
+  for (const auto c : big.counts) EXPECT_GE(c, 4U);
+}
+
+TEST(VoxelGrid, SameResultForAnyThreadCount) {
+  ds3d::test::Rng rng(3);
+  const Points3f p = ds3d::test::uniform_box(50'000, {-1, -1, -1}, {1, 1, 1}, rng);
+  const auto r1 = ds3d::voxel_grid(p, {.leaf_size = 0.05, .num_threads = 1});
+  for (const int t : {2, 4, 7, 0}) {
+    const auto rt = ds3d::voxel_grid(p, {.leaf_size = 0.05, .num_threads = t});
+    EXPECT_EQ(rt.centroids, r1.centroids);  // bit-identical
+    EXPECT_EQ(rt.keys, r1.keys);
+    EXPECT_EQ(rt.counts, r1.counts);
+    EXPECT_EQ(rt.representative, r1.representative);
+  }
+}
+
+TEST(VoxelGrid, NonFiniteInput) {
+  Points3f p(5, 3);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  p << 0.1F, 0.1F, 0.1F, nan, 0, 0, 0, -inf, 0, 0.12F, 0.11F, 0.13F, 0, 0, inf;
+  const auto r = ds3d::voxel_grid(p, {.leaf_size = 1.0});
+  EXPECT_EQ(r.num_non_finite, 3U);
+  ASSERT_EQ(r.centroids.rows(), 1);
+  EXPECT_EQ(r.counts[0], 2U);
+  EXPECT_TRUE(r.centroids.allFinite());
+  EXPECT_THROW((void)ds3d::voxel_grid(p, {.on_non_finite = ds3d::NonFinite::kThrow}),
+               ds3d::InvalidArgument);
+}
+
+TEST(VoxelGrid, RejectsBadParams) {
+  const Points3f p = Points3f::Zero(3, 3);
+  EXPECT_THROW((void)ds3d::voxel_grid(p, {.leaf_size = -0.1}), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::voxel_grid(p, {.leaf_size = 0.0}), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::voxel_grid(p, {.leaf_size = {0.1, std::nan(""), 0.1}}),
+               ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::voxel_grid(p, {.leaf_size = {0.1, 0.1, HUGE_VAL}}),
+               ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::voxel_grid(p, {.min_points = 0}), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::voxel_grid(p, {.num_threads = -1}), ds3d::InvalidArgument);
+  try {
+    (void)ds3d::voxel_grid(p, {.leaf_size = -0.1});
+    FAIL();
+  } catch (const ds3d::InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("ds3d::voxel_grid: leaf_size.dx"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("-0.1"), std::string::npos);
+  }
+}
+
+TEST(VoxelGrid, KeyOverflowThrowsNamingTheValue) {
+  Points3f p(2, 3);
+  p << 0, 0, 0, 3.0e38F, 0, 0;
+  try {
+    (void)ds3d::voxel_grid(p, {.leaf_size = 1e-3});
+    FAIL() << "expected InvalidArgument";
+  } catch (const ds3d::InvalidArgument& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("ds3d::voxel_grid"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("x = 3"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("overflow"), std::string::npos) << msg;
+  }
+  // Large but representable keys use the comparison-sort path and stay exact.
+  Points3f q(3, 3);
+  q << -1e6F, 5e5F, -2e6F, 1e6F, -5e5F, 2e6F, 1e6F, -5e5F, 2e6F;
+  const auto r = ds3d::voxel_grid(q, {.leaf_size = 1e-9});
+  ASSERT_EQ(r.centroids.rows(), 2);
+  EXPECT_EQ(r.keys(0, 0), static_cast<std::int64_t>(std::floor(-1e6 / 1e-9)));
+  EXPECT_EQ(r.counts[1], 2U);
+}
+
+// Typed test over the shipped adaptors and a user point type.
+struct UserPoint {
+  double x, y, z;
+  int label;
+};
+using UserCloud = std::vector<UserPoint>;
+
+}  // namespace
+
+template <>
+struct ds3d::PointCloudTraits<UserCloud> {
+  static std::size_t size(const UserCloud& c) { return c.size(); }
+  static Eigen::Vector3f point(const UserCloud& c, std::size_t i) {
+    return Eigen::Vector3d(c[i].x, c[i].y, c[i].z).cast<float>();
+  }
+};
+
+namespace {
+
+template <class C>
+C convert(const Points3f& p);
+template <>
+Points3f convert(const Points3f& p) {
+  return p;
+}
+template <>
+std::vector<Eigen::Vector3f> convert(const Points3f& p) {
+  std::vector<Eigen::Vector3f> v;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) v.emplace_back(p.row(i).transpose());
+  return v;
+}
+template <>
+UserCloud convert(const Points3f& p) {
+  UserCloud v;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) v.push_back({p(i, 0), p(i, 1), p(i, 2), 0});
+  return v;
+}
+
+template <class C>
+class VoxelGridTyped : public ::testing::Test {};
+using CloudTypes = ::testing::Types<Points3f, std::vector<Eigen::Vector3f>, UserCloud>;
+TYPED_TEST_SUITE(VoxelGridTyped, CloudTypes);
+
+TYPED_TEST(VoxelGridTyped, SameAsPoints3f) {
+  ds3d::test::Rng rng(4);
+  const Points3f p = ds3d::test::plane_points(5000, 2.0, 0.01, rng);
+  const TypeParam c = convert<TypeParam>(p);
+  const auto ref = ds3d::voxel_grid(p, {.leaf_size = 0.1});
+  const auto r = ds3d::voxel_grid(c, {.leaf_size = 0.1});
+  EXPECT_EQ(r.centroids, ref.centroids);
+  EXPECT_EQ(r.keys, ref.keys);
+  EXPECT_EQ(r.representative, ref.representative);
+}
+
+}  // namespace
