@@ -1,0 +1,418 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#pragma once
+// Exact minimum spanning trees of the mutual-reachability graph
+// d_mr(i,j) = max{core(i), core(j), d(i,j)}. Not API: see ds3d/hdbscan.hpp.
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <utility>
+#include <vector>
+
+#include "ds3d/detail/kdtree_nd.hpp"
+#include "ds3d/detail/parallel.hpp"
+#include "ds3d/hdbscan.hpp"
+
+namespace ds3d::detail {
+
+// Prim on the implicit dense graph. The not-yet-connected points are kept in SoA arrays in
+// index order; a connected point is marked with key = -inf (never updated again, never picked)
+// and the arrays are compacted, order-preserving, once half of them are dead. Every step thus
+// streams over contiguous memory with a branch-free update, and ties are resolved exactly like
+// the reference (first point in index order with the strictly smallest key; keys only replaced by
+// strictly smaller ones). d(i,j) = sqrt(sq_dist_seq) exactly, so MST weights are bitwise those of
+// the reference. O(n² D) time, O(n D) memory.
+template <int kDim>
+void prim_dense_update(const std::vector<std::vector<double>>& coords, const double* c,
+                       std::size_t dim, double core_cur, const double* core, double* key,
+                       std::uint32_t* from, std::uint32_t cur, std::size_t m, double* scratch) {
+  const std::size_t d_count = kDim > 0 ? static_cast<std::size_t>(kDim) : dim;
+  for (std::size_t t = 0; t < m; ++t) scratch[t] = 0.0;
+  for (std::size_t j = 0; j < d_count; ++j) {
+    const double* x = coords[j].data();
+    const double cj = c[j];
+    for (std::size_t t = 0; t < m; ++t) {
+      const double diff = x[t] - cj;
+      scratch[t] += no_contract(diff * diff);
+    }
+  }
+  for (std::size_t t = 0; t < m; ++t) {
+    const double d = std::sqrt(scratch[t]);
+    const double lo = core_cur > core[t] ? core_cur : core[t];
+    const double mr = d > lo ? d : lo;
+    const bool better = mr < key[t];
+    key[t] = better ? mr : key[t];
+    from[t] = better ? cur : from[t];
+  }
+}
+
+inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::size_t dim,
+                                       const std::vector<double>& core_in) {
+  std::vector<MstEdge> edges;
+  if (n < 2) return edges;
+  edges.reserve(n - 1);
+  constexpr double kDead = -std::numeric_limits<double>::infinity();
+  std::size_t m = n - 1;  // slots in use (alive + dead)
+  std::size_t alive = m;
+  std::vector<std::vector<double>> coords(dim, std::vector<double>(m));
+  std::vector<double> core(m), key(m, std::numeric_limits<double>::infinity()), scratch(m);
+  std::vector<std::uint32_t> idx(m), from(m, 0);
+  for (std::size_t t = 0; t < m; ++t) {
+    idx[t] = static_cast<std::uint32_t>(t + 1);
+    core[t] = core_in[t + 1];
+    for (std::size_t j = 0; j < dim; ++j) coords[j][t] = data[(t + 1) * dim + j];
+  }
+  std::vector<double> c(data, data + dim);
+  std::uint32_t cur = 0;
+  double core_cur = core_in[0];
+  while (alive > 0) {
+    if (dim == 3) {
+      prim_dense_update<3>(coords, c.data(), dim, core_cur, core.data(), key.data(), from.data(),
+                           cur, m, scratch.data());
+    } else if (dim == 2) {
+      prim_dense_update<2>(coords, c.data(), dim, core_cur, core.data(), key.data(), from.data(),
+                           cur, m, scratch.data());
+    } else {
+      prim_dense_update<-1>(coords, c.data(), dim, core_cur, core.data(), key.data(), from.data(),
+                            cur, m, scratch.data());
+    }
+    std::size_t best = m;
+    double best_key = std::numeric_limits<double>::infinity();
+    for (std::size_t t = 0; t < m; ++t) {
+      if (key[t] < best_key && key[t] != kDead) {
+        best_key = key[t];
+        best = t;
+      }
+    }
+    if (best == m) {  // all remaining keys are +inf: cannot happen for finite input
+      for (std::size_t t = 0; t < m; ++t) {
+        if (key[t] != kDead) best = t;
+      }
+      best_key = key[best];
+    }
+    edges.push_back({from[best], idx[best], best_key});
+    cur = idx[best];
+    core_cur = core[best];
+    for (std::size_t j = 0; j < dim; ++j) c[j] = coords[j][best];
+    key[best] = kDead;
+    --alive;
+    if (alive > 0 && 2 * alive < m) {  // order-preserving compaction
+      std::size_t w = 0;
+      for (std::size_t t = 0; t < m; ++t) {
+        if (key[t] == kDead) continue;
+        idx[w] = idx[t];
+        core[w] = core[t];
+        key[w] = key[t];
+        from[w] = from[t];
+        for (std::size_t j = 0; j < dim; ++j) coords[j][w] = coords[j][t];
+        ++w;
+      }
+      m = w;
+    }
+  }
+  return edges;
+}
+
+// Prim on a precomputed dense distance matrix (row-major n × n). O(n²) time, O(n) memory.
+inline std::vector<MstEdge> prim_precomputed(const double* dist, std::size_t n,
+                                             const std::vector<double>& core) {
+  std::vector<MstEdge> edges;
+  if (n < 2) return edges;
+  edges.reserve(n - 1);
+  std::vector<double> key(n, std::numeric_limits<double>::infinity());
+  std::vector<std::uint32_t> from(n, 0);
+  std::vector<std::uint32_t> rem(n - 1);
+  for (std::size_t t = 0; t + 1 < n; ++t) rem[t] = static_cast<std::uint32_t>(t + 1);
+  std::uint32_t cur = 0;
+  while (!rem.empty()) {
+    const double* row = dist + static_cast<std::size_t>(cur) * n;
+    std::size_t best = 0;
+    double best_key = std::numeric_limits<double>::infinity();
+    for (std::size_t t = 0; t < rem.size(); ++t) {
+      const std::uint32_t j = rem[t];
+      const double mr = std::max({core[cur], core[j], row[j]});
+      if (mr < key[j]) {
+        key[j] = mr;
+        from[j] = cur;
+      }
+      if (key[j] < best_key || t == 0) {
+        best_key = key[j];
+        best = t;
+      }
+    }
+    const std::uint32_t nxt = rem[best];
+    edges.push_back({from[nxt], nxt, key[nxt]});
+    rem[best] = rem.back();
+    rem.pop_back();
+    cur = nxt;
+  }
+  return edges;
+}
+
+// KD-tree Borůvka on the mutual-reachability graph (McInnes & Healy 2017, "Accelerated
+// Hierarchical Density Based Clustering", §3, single-tree variant). Each round every point looks
+// for its cheapest edge to another component; a KD-tree node is skipped when it lies entirely in
+// the point's component or when max{core(q), min core in node, box distance} exceeds the best
+// edge known for the point's component. Pruning is strict (">") and candidates are ordered by
+// (weight, target index), so the edge each point reports, and hence the MST, does not depend on
+// the thread schedule. Cycles among equal-weight picks are dropped by union-find, which keeps the
+// forest minimal. O(n D) memory; about O(log n) rounds of n pruned queries.
+class BoruvkaKdTree {
+ public:
+  BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, const std::vector<double>& core,
+                int num_threads)
+      : n_(n), dim_(dim), threads_(num_threads) {
+    perm_.resize(n);
+    std::iota(perm_.begin(), perm_.end(), 0U);
+    pts_.resize(n * dim);
+    core_.resize(n);
+    build(data, core);
+  }
+
+  std::vector<MstEdge> run() {
+    std::vector<MstEdge> edges;
+    edges.reserve(n_ - 1);
+    // Union-find over original point ids.
+    uf_parent_.resize(n_);
+    std::iota(uf_parent_.begin(), uf_parent_.end(), 0U);
+    std::vector<std::uint32_t> comp(n_);  // component of tree position
+    std::vector<double> best_w(n_);
+    std::vector<std::uint32_t> best_t(n_);
+    std::vector<double> comp_w(n_);
+    std::vector<std::uint32_t> comp_q(n_), comp_t(n_);
+    const double inf = std::numeric_limits<double>::infinity();
+    std::unique_ptr<std::atomic<double>[]> bound(new std::atomic<double>[n_]);
+    while (edges.size() + 1 < n_) {
+      for (std::size_t i = 0; i < n_; ++i) comp[i] = find(perm_[i]);
+      label_nodes(comp);
+      for (std::size_t i = 0; i < n_; ++i) bound[i].store(inf, std::memory_order_relaxed);
+      comp_ = comp.data();
+      bound_ = bound.get();
+      parallel_chunks(n_, std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)),
+                      threads_, [&](std::size_t b, std::size_t e, std::size_t) {
+                        for (std::size_t i = b; i < e; ++i) query(i, best_w[i], best_t[i]);
+                      });
+      // Deterministic per-component reduction: (weight, tree position of q).
+      std::fill(comp_w.begin(), comp_w.end(), inf);
+      for (std::size_t i = 0; i < n_; ++i) {
+        const auto c = comp[i];
+        if (best_w[i] < comp_w[c]) {
+          comp_w[c] = best_w[i];
+          comp_q[c] = static_cast<std::uint32_t>(i);
+          comp_t[c] = best_t[i];
+        }
+      }
+      std::size_t added = 0;
+      for (std::size_t c = 0; c < n_; ++c) {
+        if (comp_w[c] == inf) continue;
+        const std::uint32_t a = perm_[comp_q[c]];
+        const std::uint32_t b = perm_[comp_t[c]];
+        const auto ra = find(a);
+        const auto rb = find(b);
+        if (ra == rb) continue;
+        uf_parent_[ra] = rb;
+        edges.push_back({a, b, comp_w[c]});
+        ++added;
+      }
+      if (added == 0) break;  // cannot happen for a complete graph; guards against bad input
+    }
+    return edges;
+  }
+
+ private:
+  struct Node {
+    std::uint32_t begin, end;
+    std::int32_t left, right;  // -1 for leaves
+    double min_core;
+    std::uint32_t comp;  // component of all points, or kMixed
+  };
+  static constexpr std::uint32_t kMixed = 0xFFFFFFFFU;
+  static constexpr std::uint32_t kLeafSize = 16;
+
+  std::uint32_t find(std::uint32_t x) {
+    std::uint32_t r = x;
+    while (uf_parent_[r] != r) r = uf_parent_[r];
+    while (uf_parent_[x] != r) {
+      const auto nx = uf_parent_[x];
+      uf_parent_[x] = r;
+      x = nx;
+    }
+    return r;
+  }
+
+  void build(const double* data, const std::vector<double>& core) {
+    nodes_.reserve(2 * (n_ / kLeafSize + 1));
+    std::vector<std::uint32_t> order(n_);
+    std::iota(order.begin(), order.end(), 0U);
+    build_node(data, order, 0, static_cast<std::uint32_t>(n_));
+    for (std::size_t i = 0; i < n_; ++i) {
+      perm_[i] = order[i];
+      core_[i] = core[order[i]];
+      for (std::size_t j = 0; j < dim_; ++j) pts_[i * dim_ + j] = data[order[i] * dim_ + j];
+    }
+    for (std::size_t k = nodes_.size(); k-- > 0;) {
+      auto& nd = nodes_[k];
+      if (nd.left < 0) {
+        double m = std::numeric_limits<double>::infinity();
+        for (auto i = nd.begin; i < nd.end; ++i) m = std::min(m, core_[i]);
+        nd.min_core = m;
+      } else {
+        nd.min_core = std::min(nodes_[static_cast<std::size_t>(nd.left)].min_core,
+                               nodes_[static_cast<std::size_t>(nd.right)].min_core);
+      }
+    }
+  }
+
+  std::int32_t build_node(const double* data, std::vector<std::uint32_t>& order, std::uint32_t b,
+                          std::uint32_t e) {
+    const auto id = static_cast<std::int32_t>(nodes_.size());
+    nodes_.push_back({b, e, -1, -1, 0.0, kMixed});
+    lo_.resize(nodes_.size() * dim_);
+    hi_.resize(nodes_.size() * dim_);
+    double* lo = lo_.data() + static_cast<std::size_t>(id) * dim_;
+    double* hi = hi_.data() + static_cast<std::size_t>(id) * dim_;
+    for (std::size_t j = 0; j < dim_; ++j) {
+      lo[j] = std::numeric_limits<double>::infinity();
+      hi[j] = -std::numeric_limits<double>::infinity();
+    }
+    for (auto i = b; i < e; ++i) {
+      for (std::size_t j = 0; j < dim_; ++j) {
+        const double v = data[order[i] * dim_ + j];
+        lo[j] = std::min(lo[j], v);
+        hi[j] = std::max(hi[j], v);
+      }
+    }
+    if (e - b <= kLeafSize) return id;
+    std::size_t split = 0;
+    for (std::size_t j = 1; j < dim_; ++j) {
+      if (hi[j] - lo[j] > hi[split] - lo[split]) split = j;
+    }
+    if (!(hi[split] > lo[split])) return id;  // all points identical: keep as one leaf
+    const auto mid = b + (e - b) / 2;
+    std::nth_element(order.begin() + b, order.begin() + mid, order.begin() + e,
+                     [&](std::uint32_t x, std::uint32_t y) {
+                       return data[x * dim_ + split] < data[y * dim_ + split];
+                     });
+    const auto l = build_node(data, order, b, mid);
+    const auto r = build_node(data, order, mid, e);
+    nodes_[static_cast<std::size_t>(id)].left = l;
+    nodes_[static_cast<std::size_t>(id)].right = r;
+    return id;
+  }
+
+  void label_nodes(const std::vector<std::uint32_t>& comp) {
+    for (std::size_t k = nodes_.size(); k-- > 0;) {
+      auto& nd = nodes_[k];
+      if (nd.left < 0) {
+        std::uint32_t c = comp[nd.begin];
+        for (auto i = nd.begin + 1; i < nd.end && c != kMixed; ++i) {
+          if (comp[i] != c) c = kMixed;
+        }
+        nd.comp = c;
+      } else {
+        const auto cl = nodes_[static_cast<std::size_t>(nd.left)].comp;
+        nd.comp = cl == nodes_[static_cast<std::size_t>(nd.right)].comp ? cl : kMixed;
+      }
+    }
+  }
+
+  // Lower bound of the Euclidean distance from q to node k's box (monotone rounding makes it a
+  // true lower bound of the computed point distances).
+  [[nodiscard]] double box_dist(const double* q, std::size_t k) const {
+    const double* lo = lo_.data() + k * dim_;
+    const double* hi = hi_.data() + k * dim_;
+    double s = 0.0;
+    for (std::size_t j = 0; j < dim_; ++j) {
+      const double a = lo[j] - q[j];
+      const double b = q[j] - hi[j];
+      const double d = a > 0.0 ? a : (b > 0.0 ? b : 0.0);
+      s += no_contract(d * d);
+    }
+    return std::sqrt(s);
+  }
+
+  static void atomic_min(std::atomic<double>& a, double v) {
+    double cur = a.load(std::memory_order_relaxed);
+    while (v < cur && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
+    }
+  }
+
+  void query(std::size_t qi, double& out_w, std::uint32_t& out_t) const {
+    const std::uint32_t cq = comp_[qi];
+    const double cqore = core_[qi];
+    out_w = std::numeric_limits<double>::infinity();
+    out_t = 0;
+    std::atomic<double>& cb = bound_[cq];
+    if (cqore > cb.load(std::memory_order_relaxed)) return;
+    const double* q = pts_.data() + qi * dim_;
+    double best_w = std::numeric_limits<double>::infinity();
+    std::uint32_t best_t = 0;
+    // Explicit stack of (node, lower bound).
+    std::pair<std::int32_t, double> stack[128];
+    int top = 0;
+    stack[top++] = {0, std::max(cqore, nodes_[0].min_core)};
+    while (top > 0) {
+      const auto [k, lb] = stack[--top];
+      const double bound = std::min(best_w, cb.load(std::memory_order_relaxed));
+      if (lb > bound) continue;
+      const Node& nd = nodes_[static_cast<std::size_t>(k)];
+      if (nd.comp == cq) continue;
+      if (nd.left < 0) {
+        for (auto i = nd.begin; i < nd.end; ++i) {
+          if (comp_[i] == cq) continue;
+          const double lo = cqore > core_[i] ? cqore : core_[i];
+          if (lo > best_w) continue;
+          const double d =
+              std::sqrt(sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_));
+          const double mr = d > lo ? d : lo;
+          if (mr < best_w || (mr == best_w && i < best_t)) {
+            best_w = mr;
+            best_t = i;
+          }
+        }
+        continue;
+      }
+      const auto l = static_cast<std::size_t>(nd.left);
+      const auto r = static_cast<std::size_t>(nd.right);
+      const double lbl = std::max({cqore, nodes_[l].min_core, box_dist(q, l)});
+      const double lbr = std::max({cqore, nodes_[r].min_core, box_dist(q, r)});
+      // Push the farther child first so the nearer one is searched first.
+      if (lbl <= lbr) {
+        stack[top++] = {nd.right, lbr};
+        stack[top++] = {nd.left, lbl};
+      } else {
+        stack[top++] = {nd.left, lbl};
+        stack[top++] = {nd.right, lbr};
+      }
+    }
+    out_w = best_w;
+    out_t = best_t;
+    if (best_w < std::numeric_limits<double>::infinity()) atomic_min(cb, best_w);
+  }
+
+  std::size_t n_, dim_;
+  int threads_;
+  std::vector<std::uint32_t> perm_;  // tree position -> point id
+  std::vector<double> pts_;          // coordinates in tree order
+  std::vector<double> core_;         // core distances in tree order
+  std::vector<Node> nodes_;
+  std::vector<double> lo_, hi_;
+  std::vector<std::uint32_t> uf_parent_;
+  const std::uint32_t* comp_ = nullptr;
+  std::atomic<double>* bound_ = nullptr;
+};
+
+inline std::vector<MstEdge> boruvka_kdtree(const double* data, std::size_t n, std::size_t dim,
+                                           const std::vector<double>& core, int num_threads) {
+  if (n < 2) return {};
+  BoruvkaKdTree t(data, n, dim, core, num_threads);
+  return t.run();
+}
+
+}  // namespace ds3d::detail
