@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -177,6 +178,45 @@ inline void write_file_atomically(const std::filesystem::path& path, std::string
     throw IoError(concat(function, ": cannot rename '", tmp.string(), "' to '", path.string(),
                          "': ", ec.message()));
   }
+}
+
+}  // namespace ds3d::detail
+
+namespace ds3d::detail {
+
+/// One entry of a TUM list file (rgb.txt, depth.txt): a stamp and the rest of its tokens.
+struct TumListEntry {
+  double timestamp = 0;
+  std::vector<std::string> values;
+};
+
+/// Parses a TUM list file as associate.py's read_file_list(): lines with fewer than 2 tokens are
+/// ignored, a repeated stamp keeps its later line, the result is sorted by stamp.
+/// Throws IoError naming `function`, `source` and the line for a stamp that is not a finite number.
+[[nodiscard]] inline std::vector<TumListEntry> parse_tum_list(std::string_view text,
+                                                              std::string_view source,
+                                                              const char* function) {
+  std::vector<TumListEntry> out;
+  for (const auto& line : split_tum_lines(text)) {
+    if (line.tokens.size() < 2) continue;
+    const auto t = parse_py_float(line.tokens[0]);
+    DS3D_CHECK_AS(IoError, t.has_value() && std::isfinite(*t), function, ": ", source, " line ",
+                  line.number, ": timestamp '", line.tokens[0], "' is not a finite number");
+    TumListEntry e;
+    e.timestamp = *t;
+    for (std::size_t k = 1; k < line.tokens.size(); ++k) e.values.emplace_back(line.tokens[k]);
+    out.push_back(std::move(e));
+  }
+  std::stable_sort(out.begin(), out.end(), [](const TumListEntry& a, const TumListEntry& b) {
+    return a.timestamp < b.timestamp;
+  });
+  std::vector<TumListEntry> unique;
+  unique.reserve(out.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    if (i + 1 < out.size() && out[i + 1].timestamp == out[i].timestamp) continue;
+    unique.push_back(std::move(out[i]));
+  }
+  return unique;
 }
 
 }  // namespace ds3d::detail
