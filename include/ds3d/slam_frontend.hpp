@@ -1,0 +1,268 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#pragma once
+/// @file slam_frontend.hpp
+/// @brief A minimal ORB-SLAM2-style RGB-D SLAM front-end (tracking + local mapping) with the
+/// dynamic-feature hooks of 3DS-SLAM (ds3d::slam; OpenCV + Ceres).
+///
+/// Method (Mur-Artal & Tardós 2017, "ORB-SLAM2", §III-A and §V, RGB-D case):
+/// - each frame gets grid-spread ORB features with a depth each (orb_features.hpp);
+/// - tracking predicts the pose with a constant-velocity model, matches the last frame's map
+///   points by projection and optimises the pose (bundle_adjustment.hpp: Ceres, Huber, four χ²
+///   rounds); it falls back to descriptor matching against the reference keyframe (+ PnP-RANSAC),
+///   then to relocalisation against past keyframes; it then tracks the local map (points of the
+///   covisible keyframes) and optimises again;
+/// - a keyframe is inserted by ORB-SLAM2's policy; it creates map points from depth, updates the
+///   covisibility graph, culls weak recent points and launches a local bundle adjustment over the
+///   covisible window with the other observing keyframes fixed.
+///
+/// Between feature extraction and tracking sit the two stages 3DS-SLAM adds (Shen et al.): a
+/// DynamicObjectSource (e.g. a 3-D detector) and a DynamicFeatureMasker (e.g. HDBSCAN-based
+/// filtering) that marks keypoints on moving objects; marked keypoints never reach tracking.
+/// The `none` implementations keep every feature.
+///
+/// Determinism: local BA runs in a mapping thread on a snapshot of the map, and its result is
+/// applied exactly `ba_apply_lag` frames after the keyframe that launched it (tracking waits if
+/// it is not done). Output is therefore identical with or without the thread, for any timing.
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include "ds3d/bundle_adjustment.hpp"
+#include "ds3d/camera.hpp"
+#include "ds3d/cloud.hpp"
+#include "ds3d/orb_features.hpp"
+
+namespace ds3d::slam {
+
+/// One RGB-D frame as given to the stages (a view: the images are shared, not copied).
+struct FrameInput {
+  std::size_t index = 0;  ///< position in the input sequence (0-based)
+  double timestamp = 0;   ///< [s], non-decreasing along the sequence
+  cv::Mat rgb;            ///< CV_8UC3 BGR (or CV_8UC1 grey), camera.width × camera.height
+  cv::Mat depth;          ///< CV_16UC1, camera.depth_scale units per metre, 0 = none; may be empty
+};
+
+/// What a dynamic-object source found in one frame. All members are optional (empty = nothing).
+struct DynamicObjects {
+  std::vector<cv::Rect2f> boxes_2d;  ///< image boxes of moving objects [px, raw image]
+  std::vector<float> scores;         ///< one confidence per 2-D box in [0, 1], or empty
+  std::vector<Eigen::Matrix<float, 8, 3>> boxes_3d;  ///< corners of 3-D boxes, camera frame [m]
+  cv::Mat pixel_mask;  ///< CV_8UC1 image-sized mask, non-zero = dynamic; or empty
+};
+
+/// Stage "dynamic-object source": finds moving objects in a frame (runs beside feature
+/// extraction, as 3DS-SLAM's detection thread). Called once per frame, in frame order, from one
+/// thread at a time, so implementations may keep state across frames.
+class DynamicObjectSource {
+ public:
+  virtual ~DynamicObjectSource() = default;
+  /// Objects in `frame`. Must not throw for a valid frame; "nothing found" = empty result.
+  virtual DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) = 0;
+  /// Short name for logs and stats (e.g. "none", "htx").
+  [[nodiscard]] virtual std::string name() const = 0;
+};
+
+/// Stage "dynamic filter": decides which keypoints lie on moving objects. Called once per frame,
+/// in frame order, from one thread at a time.
+class DynamicFeatureMasker {
+ public:
+  virtual ~DynamicFeatureMasker() = default;
+  /// One byte per keypoint of `features` (same order): non-zero = dynamic, dropped before tracking.
+  virtual std::vector<std::uint8_t> mask(const FrameInput& frame, const PinholeCamera& camera,
+                                         const OrbFeatures& features,
+                                         const DynamicObjects& objects) = 0;
+  /// Short name for logs and stats (e.g. "none", "hdbscan").
+  [[nodiscard]] virtual std::string name() const = 0;
+};
+
+/// The `none` source: finds nothing.
+class NoDynamicObjects final : public DynamicObjectSource {
+ public:
+  DynamicObjects detect(const FrameInput&, const PinholeCamera&) override { return {}; }
+  [[nodiscard]] std::string name() const override { return "none"; }
+};
+
+/// The `none` filter: keeps every keypoint.
+class NoDynamicMasker final : public DynamicFeatureMasker {
+ public:
+  std::vector<std::uint8_t> mask(const FrameInput&, const PinholeCamera&,
+                                 const OrbFeatures& features, const DynamicObjects&) override {
+    return std::vector<std::uint8_t>(features.size(), 0);
+  }
+  [[nodiscard]] std::string name() const override { return "none"; }
+};
+
+/// Configuration of SlamFrontend. Defaults follow ORB-SLAM2's TUM RGB-D settings.
+struct FrontendConfig {
+  PinholeCamera camera;           ///< intrinsics, distortion and depth scale of the input
+  OrbParams orb;                  ///< feature extraction (orb.max_depth = close/far threshold)
+  PoseOptimizerParams pose;       ///< pose-only optimisation
+  LocalBaParams local_ba;         ///< local bundle adjustment
+  double bf = 40.0;               ///< virtual stereo baseline × fx [px·m] for depth residuals, > 0
+  int min_init_points = 100;      ///< keypoints with depth needed to start the map, >= 10
+  int min_tracked_inliers = 30;   ///< local-map inliers for a frame to count as tracked, >= 10
+  int keyframe_max_gap = 30;      ///< insert a keyframe at least every this many frames, >= 1
+  int local_window = 10;          ///< keyframes optimised by local BA (covisible window), >= 2
+  int max_fixed_keyframes = 20;   ///< other observing keyframes held fixed in local BA, >= 1
+  bool enable_local_ba = true;    ///< run local BA on every new keyframe
+  bool mapping_thread = true;     ///< run local BA in its own thread (results are identical)
+  int ba_apply_lag = 3;           ///< frames after a keyframe at which its BA result is applied, >= 0
+  int relocalisation_candidates = 30;  ///< most recent keyframes tried when lost, >= 1
+  int reanchor_after_lost = 10;   ///< consecutive lost frames after which a new map segment starts
+                                  ///< at the last pose (0 = never), >= 0
+  void validate() const;          ///< throws ds3d::InvalidArgument naming the bad field
+};
+
+/// Tracking state of a frame.
+enum class TrackState : std::uint8_t {
+  kNotInitialized,  ///< no map yet (not enough depth so far)
+  kInitialized,     ///< this frame created the first keyframe
+  kTracking,        ///< tracked against the map
+  kRelocalized,     ///< recovered by relocalisation
+  kLost,            ///< not tracked: the reported pose is the last known one
+  kReanchored,      ///< lost too long: a new map segment starts at the last known pose
+};
+/// Lower-case name of a TrackState ("tracking", "lost", ...).
+[[nodiscard]] const char* to_string(TrackState s) noexcept;
+
+/// Per-keypoint status in TrackResult::keypoint_status.
+enum class KeypointStatus : std::uint8_t { kUnmatched = 0, kTracked = 1, kDynamic = 2 };
+
+/// Per-stage wall times of one frame [ms].
+struct StageTimes {
+  double extract_ms = 0;  ///< ORB extraction (+ undistortion, depth lookup)
+  double detect_ms = 0;   ///< dynamic-object source
+  double filter_ms = 0;   ///< dynamic filter
+  double track_ms = 0;    ///< tracking (+ keyframe insertion, BA scheduling and applying)
+};
+
+/// The outcome of tracking one frame.
+struct TrackResult {
+  std::size_t index = 0;        ///< frame index
+  double timestamp = 0;         ///< [s]
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< online estimate
+  TrackState state = TrackState::kNotInitialized;  ///< see TrackState
+  bool tracked = false;         ///< state is kInitialized, kTracking or kRelocalized
+  bool keyframe = false;        ///< this frame became a keyframe
+  int num_features = 0;         ///< keypoints extracted
+  int num_dynamic = 0;          ///< keypoints the dynamic filter removed
+  int num_inliers = 0;          ///< map-point matches kept by the last pose optimisation
+  std::vector<cv::Point2f> keypoints;          ///< raw pixel of every extracted keypoint
+  std::vector<KeypointStatus> keypoint_status;  ///< one per keypoint
+  StageTimes times;             ///< stage timings
+};
+
+/// A frame after the extraction and dynamic stages (what the tracking stage consumes).
+struct PreparedFrame {
+  FrameInput input;                   ///< the frame itself
+  OrbFeatures features;               ///< all extracted features
+  DynamicObjects objects;             ///< from the dynamic-object source
+  std::vector<std::uint8_t> dynamic;  ///< one per feature, non-zero = removed
+  StageTimes times;                   ///< extract/detect/filter filled in
+};
+
+/// A timestamped pose (camera-to-world).
+struct FramePose {
+  std::size_t index = 0;  ///< frame index
+  double timestamp = 0;   ///< [s]
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< camera → world
+  bool tracked = false;   ///< false: carried over from the last tracked frame
+};
+
+/// RGB-D SLAM front-end: feed frames in time order, read poses.
+///
+/// Usage: `SlamFrontend slam(cfg); for (...) { auto r = slam.track(rgb, depth, t); }
+/// slam.finish(); auto traj = slam.trajectory();`
+/// @note Not thread-safe: call track() from one thread. extract() and the const queries may be
+///       called concurrently with each other, never concurrently with track()/finish().
+class SlamFrontend {
+ public:
+  /// @throws ds3d::InvalidArgument on a bad config.
+  explicit SlamFrontend(FrontendConfig config,
+                        std::shared_ptr<DynamicObjectSource> source = nullptr,
+                        std::shared_ptr<DynamicFeatureMasker> masker = nullptr);
+  ~SlamFrontend();
+  SlamFrontend(SlamFrontend&&) noexcept;
+  SlamFrontend& operator=(SlamFrontend&&) noexcept;
+  SlamFrontend(const SlamFrontend&) = delete;
+  SlamFrontend& operator=(const SlamFrontend&) = delete;
+
+  /// Runs every stage on one frame (on the calling thread) and returns its pose.
+  /// @param rgb   CV_8UC3 BGR or CV_8UC1, camera size
+  /// @param depth CV_16UC1 of the same size, or empty (then tracking relies on the map only)
+  /// @param timestamp [s], finite, >= the previous frame's
+  /// @throws ds3d::InvalidArgument on bad images or a timestamp earlier than the previous one.
+  /// @note Never throws for lost tracking, black images or missing depth: see TrackResult::state.
+  TrackResult track(const cv::Mat& rgb, const cv::Mat& depth, double timestamp);
+
+  /// Stage 1 (thread-safe, const): validates the frame and extracts features.
+  [[nodiscard]] PreparedFrame extract(FrameInput frame) const;
+  /// Stage 2: runs the dynamic-object source (in frame order).
+  void detect_dynamic(PreparedFrame& frame);
+  /// Stage 3: runs the dynamic filter (in frame order, after detect_dynamic).
+  void filter_dynamic(PreparedFrame& frame);
+  /// Stage 4: tracks a prepared frame (in frame order).
+  /// @throws ds3d::InvalidArgument when the timestamp is earlier than the previous frame's.
+  TrackResult track_prepared(PreparedFrame frame);
+
+  /// Waits for the mapping thread and applies any pending local BA. Call after the last frame.
+  void finish();
+
+  /// One pose per tracked-or-not input frame, in input order. Each frame's pose is stored relative
+  /// to its reference keyframe and re-expressed with that keyframe's latest (optimised) pose, as
+  /// ORB-SLAM2 does when saving trajectories.
+  [[nodiscard]] std::vector<FramePose> trajectory() const;
+  /// One pose per keyframe (camera → world), in creation order.
+  [[nodiscard]] std::vector<FramePose> keyframe_trajectory() const;
+  /// Positions of all good map points [m, world frame], one row each.
+  [[nodiscard]] Points3f map_points() const;
+  /// Writes map_points() as an ASCII PLY file. @throws ds3d::IoError when it cannot be written.
+  void write_map_ply(const std::filesystem::path& path) const;
+
+  [[nodiscard]] const FrontendConfig& config() const noexcept;
+  [[nodiscard]] std::size_t num_keyframes() const noexcept;
+  /// Local BAs run so far, and their total wall time [ms] (measured in the mapping thread).
+  [[nodiscard]] std::size_t num_local_ba() const noexcept;
+  [[nodiscard]] double local_ba_ms() const noexcept;
+  [[nodiscard]] const DynamicObjectSource& dynamic_source() const noexcept;
+  [[nodiscard]] const DynamicFeatureMasker& dynamic_masker() const noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Options of run_pipeline.
+struct PipelineOptions {
+  bool threaded = true;        ///< stages in their own threads (false: all on the caller's)
+  int queue_capacity = 2;      ///< frames buffered between consecutive stages, >= 1
+  void validate() const;       ///< throws ds3d::InvalidArgument naming the bad field
+};
+
+/// Runs the four stages over a sequence: extraction and dynamic-object detection in parallel
+/// threads, then the dynamic filter, then tracking, connected by bounded queues so that frame
+/// t+1 is extracted while frame t is tracked (3DS-SLAM runs detection beside ORB extraction).
+/// @param slam   the front-end (its dynamic stages are used)
+/// @param next   returns the next frame, or std::nullopt at the end; called from one thread
+/// @param on_result called on the calling thread for every frame, in order (may be empty)
+/// @return the results of all frames in order
+/// @throws whatever a stage throws (rethrown on the caller after the threads stop).
+/// @note Results are identical to calling track() on each frame (stages are pure or run in
+///       frame order); finish() is called at the end.
+std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
+                                      const std::function<std::optional<FrameInput>()>& next,
+                                      const std::function<void(const TrackResult&)>& on_result = {},
+                                      const PipelineOptions& options = {});
+
+}  // namespace ds3d::slam
