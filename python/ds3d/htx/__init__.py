@@ -11,8 +11,8 @@ import importlib
 
 _LAZY = {
     "build_model": "model", "HTx": "model", "make_config": "config", "PROFILES": "config",
-    "export": "export", "read_safetensors": "export", "write_safetensors": "export",
-    "folded_tensors": "export", "reference_detect": "detect", "postprocess": "detect",
+    "export": "weights", "read_safetensors": "weights", "write_safetensors": "weights",
+    "folded_tensors": "weights", "reference_detect": "detect", "postprocess": "detect",
     "part_targets": "targets", "box_targets": "targets", "scene_loss": "losses",
     "detection_loss": "losses", "part_loss": "losses", "hungarian_match": "losses",
     "nms_3d_same_class": "nms", "generalized_iou_3d": "boxes", "load_sunrgbd_scene": "sunrgbd",
