@@ -1,0 +1,562 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// HTx-lite inference (htx spec §3, §6). Every stage mirrors python/ds3d/htx/model.py; the
+// selection steps (FPS, ball query, 3-NN) use the same float32 expressions so that the sampling
+// indices are bit-identical to the PyTorch reference.
+#include "ds3d/sparse_detector.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <numeric>
+#include <utility>
+
+#include "ds3d/detail/json.hpp"
+#include "ds3d/detail/parallel.hpp"
+#include "ds3d/errors.hpp"
+#include "ds3d/weights_io.hpp"
+
+namespace ds3d {
+
+using Mat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using Vec = Eigen::VectorXf;
+using RowVec = Eigen::RowVectorXf;
+
+namespace {
+
+struct Linear {
+  Mat w;    // [out, in]
+  RowVec b;  // [out]
+};
+struct Norm {
+  RowVec g, b;
+};
+struct Attention {
+  Mat w_in;   // [3d, d]: q, k, v rows
+  RowVec b_in;
+  Linear out;
+};
+struct EncLayer {
+  Attention self_attn;
+  Linear l1, l2;
+  Norm n1, n2;
+};
+struct DecLayer {
+  Attention self_attn, cross_attn;
+  Linear l1, l2;
+  Norm n1, n2, n3;
+};
+
+constexpr const char* kHeadNames[5] = {"sem_cls_head", "center_head", "size_head", "angle_cls_head",
+                                       "angle_residual_head"};
+
+// y = x W^T + b  ([rows, in] -> [rows, out])
+Mat linear(const Mat& x, const Linear& l) {
+  Mat y = x * l.w.transpose();
+  y.rowwise() += l.b;
+  return y;
+}
+Mat linear_relu(const Mat& x, const Linear& l) { return linear(x, l).cwiseMax(0.0F); }
+
+Mat layer_norm(const Mat& x, const Norm& n, float eps) {
+  Mat y(x.rows(), x.cols());
+  const float inv_d = 1.0F / static_cast<float>(x.cols());
+  for (Eigen::Index r = 0; r < x.rows(); ++r) {
+    const float mean = x.row(r).sum() * inv_d;
+    const RowVec c = x.row(r).array() - mean;
+    const float var = c.squaredNorm() * inv_d;
+    y.row(r) = (c * (1.0F / std::sqrt(var + eps))).cwiseProduct(n.g) + n.b;
+  }
+  return y;
+}
+
+// Multi-head attention as torch.nn.MultiheadAttention (packed in_proj, scale 1/sqrt(head_dim)).
+// q_in [nq, d], k_in [nk, d], v_in [nk, d] -> [nq, d]. Heads run in parallel on num_threads.
+Mat attention(const Mat& q_in, const Mat& k_in, const Mat& v_in, const Attention& a, int heads,
+              int num_threads) {
+  const Eigen::Index d = a.w_in.cols();
+  const Eigen::Index hd = d / heads;
+  Mat q = q_in * a.w_in.topRows(d).transpose();
+  q.rowwise() += a.b_in.head(d);
+  Mat k = k_in * a.w_in.middleRows(d, d).transpose();
+  k.rowwise() += a.b_in.segment(d, d);
+  Mat v = v_in * a.w_in.bottomRows(d).transpose();
+  v.rowwise() += a.b_in.tail(d);
+  q *= 1.0F / std::sqrt(static_cast<float>(hd));
+  Mat o(q.rows(), d);
+  detail::parallel_chunks(static_cast<std::size_t>(heads), static_cast<std::size_t>(heads), num_threads,
+                          [&](std::size_t begin, std::size_t end, std::size_t) {
+                            for (std::size_t h = begin; h < end; ++h) {
+                              const auto c0 = static_cast<Eigen::Index>(h) * hd;
+                              Mat s = q.middleCols(c0, hd) * k.middleCols(c0, hd).transpose();  // [nq, nk]
+                              const Vec mx = s.rowwise().maxCoeff();
+                              s.colwise() -= mx;
+                              s = s.array().exp();  // Eigen's vectorised exp
+                              const Vec inv = s.rowwise().sum().cwiseInverse();
+                              s = inv.asDiagonal() * s;
+                              o.middleCols(c0, hd).noalias() = s * v.middleCols(c0, hd);
+                            }
+                          });
+  return linear(o, a.out);
+}
+
+float sigmoid(float x) { return 1.0F / (1.0F + std::exp(-x)); }
+
+// FPS of k indices over rows of p (spec §3.2); float32 expressions identical to ops.py.
+std::vector<std::int32_t> farthest_point_sample(const Mat& p, Eigen::Index k, float padding_norm2) {
+  const Eigen::Index n = p.rows();
+  std::vector<std::int32_t> out(static_cast<std::size_t>(k), 0);
+  if (n == 0 || k == 0) return out;
+  std::vector<float> dist(static_cast<std::size_t>(n), 1e10F);
+  std::vector<char> candidate(static_cast<std::size_t>(n));
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const float x = p(j, 0), y = p(j, 1), z = p(j, 2);
+    const float xx = x * x, yy = y * y, zz = z * z;
+    candidate[static_cast<std::size_t>(j)] = static_cast<char>((xx + yy) + zz > padding_norm2);
+  }
+  Eigen::Index last = 0;
+  for (Eigen::Index i = 1; i < k; ++i) {
+    const float lx = p(last, 0), ly = p(last, 1), lz = p(last, 2);
+    float best_d = -1.0F;
+    Eigen::Index best = 0;
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const float dx = p(j, 0) - lx, dy = p(j, 1) - ly, dz = p(j, 2) - lz;
+      const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
+      const float d2 = (xx + yy) + zz;
+      float& dj = dist[static_cast<std::size_t>(j)];
+      dj = std::min(dj, d2);
+      if (candidate[static_cast<std::size_t>(j)] && dj > best_d) {
+        best_d = dj;
+        best = j;
+      }
+    }
+    last = best;
+    out[static_cast<std::size_t>(i)] = static_cast<std::int32_t>(best);
+  }
+  return out;
+}
+
+int get_int(const detail::JsonValue& o, const char* key) {
+  const auto v = o.at(key).as_int();
+  DS3D_CHECK_AS(IoError, v >= -2147483647 && v <= 2147483647, "config key '", key, "' out of range");
+  return static_cast<int>(v);
+}
+float get_float(const detail::JsonValue& o, const char* key) {
+  const double v = o.at(key).as_number();
+  DS3D_CHECK_AS(IoError, std::isfinite(v), "config key '", key, "' is not finite");
+  return static_cast<float>(v);
+}
+
+}  // namespace
+
+struct SparseDetector::Weights {
+  std::vector<Linear> sa_mlp;
+  std::vector<EncLayer> enc;
+  Linear proj0, proj1;
+  Mat gauss_b;  // [3, d/2]
+  Linear qproj0, qproj1;
+  std::vector<DecLayer> dec;
+  Norm dec_norm;
+  Linear head0_all;              // the 5 heads' first layers stacked: [5 h, d]
+  std::array<Linear, 5> head1;   // [h, h]
+  std::array<Linear, 5> head2;   // [out, h]
+  Linear part0, part1;
+};
+
+DetectorConfig DetectorConfig::from_json(std::string_view json) {
+  detail::JsonValue o;
+  try {
+    o = detail::parse_json(json);
+  } catch (const IoError& e) {
+    throw IoError(std::string("ds3d::DetectorConfig::from_json: ") + e.what());
+  }
+  DetectorConfig c;
+  try {
+    c.profile = o.at("profile").as_string();
+    c.num_centres = get_int(o, "num_centres");
+    c.sa_radius = get_float(o, "sa_radius");
+    c.sa_samples = get_int(o, "sa_samples");
+    c.sa_mlp.clear();
+    for (const auto& v : o.at("sa_mlp").as_array()) {
+      const auto x = v.as_int();
+      DS3D_CHECK_AS(IoError, x > 0 && x < 65536, "sa_mlp width out of range");
+      c.sa_mlp.push_back(static_cast<int>(x));
+    }
+    c.d_model = get_int(o, "d_model");
+    c.num_heads = get_int(o, "num_heads");
+    c.enc_layers = get_int(o, "enc_layers");
+    c.enc_ffn = get_int(o, "enc_ffn");
+    c.dec_layers = get_int(o, "dec_layers");
+    c.dec_ffn = get_int(o, "dec_ffn");
+    c.num_queries = get_int(o, "num_queries");
+    c.num_classes = get_int(o, "num_classes");
+    c.class_names.clear();
+    for (const auto& v : o.at("class_names").as_array()) c.class_names.push_back(v.as_string());
+    c.num_angle_bins = get_int(o, "num_angle_bins");
+    c.head_hidden = get_int(o, "head_hidden");
+    c.part_hidden = get_int(o, "part_hidden");
+    c.layer_norm_eps = get_float(o, "layer_norm_eps");
+    c.min_points_in_box = get_int(o, "min_points_in_box");
+    c.nms_iou = get_float(o, "nms_iou");
+    c.score_threshold = get_float(o, "score_threshold");
+    c.min_size_extent = get_float(o, "min_size_extent");
+    c.fps_padding_norm2 = get_float(o, "fps_padding_norm2");
+    DS3D_CHECK_AS(IoError, o.at("bn_folded").as_bool(), "bn_folded must be true");
+    DS3D_CHECK_AS(IoError, o.at("in_proj").as_string() == "packed_qkv", "in_proj must be 'packed_qkv'");
+  } catch (const IoError& e) {
+    throw IoError(std::string("ds3d::DetectorConfig::from_json: ") + e.what());
+  }
+  c.validate();
+  return c;
+}
+
+void DetectorConfig::validate() const {
+  auto check = [](bool ok, const char* key, auto value) {
+    DS3D_CHECK_AS(IoError, ok, "ds3d::DetectorConfig: ", key, " out of range (got ", value, ")");
+  };
+  constexpr int kMax = 1 << 16;
+  check(num_centres > 0 && num_centres <= kMax, "num_centres", num_centres);
+  check(sa_radius > 0.0F && std::isfinite(sa_radius), "sa_radius", sa_radius);
+  check(sa_samples > 0 && sa_samples <= 4096, "sa_samples", sa_samples);
+  check(!sa_mlp.empty() && sa_mlp.size() <= 16, "sa_mlp size", sa_mlp.size());
+  check(d_model > 0 && d_model <= 8192 && d_model % 2 == 0, "d_model", d_model);
+  check(num_heads > 0 && d_model % num_heads == 0, "num_heads", num_heads);
+  check(sa_mlp.back() == d_model, "sa_mlp last width", sa_mlp.back());
+  check(enc_layers >= 0 && enc_layers <= 64, "enc_layers", enc_layers);
+  check(dec_layers > 0 && dec_layers <= 64, "dec_layers", dec_layers);
+  check(enc_ffn > 0 && enc_ffn <= kMax, "enc_ffn", enc_ffn);
+  check(dec_ffn > 0 && dec_ffn <= kMax, "dec_ffn", dec_ffn);
+  check(num_queries > 0 && num_queries <= kMax, "num_queries", num_queries);
+  check(num_classes > 0 && num_classes <= 4096, "num_classes", num_classes);
+  check(class_names.size() == static_cast<std::size_t>(num_classes), "class_names size", class_names.size());
+  check(num_angle_bins > 0 && num_angle_bins <= 360, "num_angle_bins", num_angle_bins);
+  check(head_hidden > 0 && head_hidden <= kMax, "head_hidden", head_hidden);
+  check(part_hidden > 0 && part_hidden <= kMax, "part_hidden", part_hidden);
+  check(layer_norm_eps > 0.0F, "layer_norm_eps", layer_norm_eps);
+  check(min_points_in_box >= 0, "min_points_in_box", min_points_in_box);
+  check(nms_iou >= 0.0F && nms_iou <= 1.0F, "nms_iou", nms_iou);
+  check(score_threshold >= 0.0F && score_threshold < 1.0F, "score_threshold", score_threshold);
+  check(min_size_extent > 0.0F, "min_size_extent", min_size_extent);
+  check(fps_padding_norm2 >= 0.0F, "fps_padding_norm2", fps_padding_norm2);
+}
+
+SparseDetector SparseDetector::load(const std::filesystem::path& weights) {
+  return from_weights(WeightsFile::read(weights));
+}
+
+SparseDetector SparseDetector::from_weights(const WeightsFile& f) {
+  const std::string& fmt = f.metadata("format");
+  DS3D_CHECK_AS(IoError, fmt == "ds3d-htx", "ds3d::SparseDetector::load: ", f.source(),
+                ": metadata format is '", fmt, "', expected 'ds3d-htx'");
+  const std::string& ver = f.metadata("version");
+  DS3D_CHECK_AS(IoError, ver == "1", "ds3d::SparseDetector::load: ", f.source(), ": unsupported version '",
+                ver, "'");
+  DetectorConfig c = DetectorConfig::from_json(f.metadata("config"));
+  auto w = std::make_shared<Weights>();
+  std::vector<std::string> used;
+  auto mat = [&](const std::string& name, std::int64_t rows, std::int64_t cols) {
+    used.push_back(name);
+    const auto v = f.f32(name, {rows, cols});
+    return Mat(Eigen::Map<const Mat>(v.data(), rows, cols));
+  };
+  auto vec = [&](const std::string& name, std::int64_t n) {
+    used.push_back(name);
+    const auto v = f.f32(name, {n});
+    return RowVec(Eigen::Map<const RowVec>(v.data(), n));
+  };
+  auto lin = [&](const std::string& name, std::int64_t out, std::int64_t in) {
+    Linear l;
+    l.w = mat(name + ".weight", out, in);
+    l.b = vec(name + ".bias", out);
+    return l;
+  };
+  auto norm = [&](const std::string& name, std::int64_t d) {
+    return Norm{vec(name + ".weight", d), vec(name + ".bias", d)};
+  };
+  const std::int64_t d = c.d_model;
+  auto attn = [&](const std::string& name) {
+    Attention a;
+    a.w_in = mat(name + ".in_proj_weight", 3 * d, d);
+    a.b_in = vec(name + ".in_proj_bias", 3 * d);
+    a.out = lin(name + ".out_proj", d, d);
+    return a;
+  };
+  std::int64_t prev = 3;
+  for (std::size_t i = 0; i < c.sa_mlp.size(); ++i) {
+    w->sa_mlp.push_back(lin("pre_encoder.mlp." + std::to_string(i), c.sa_mlp[i], prev));
+    prev = c.sa_mlp[i];
+  }
+  for (int i = 0; i < c.enc_layers; ++i) {
+    const std::string p = "encoder.layers." + std::to_string(i);
+    w->enc.push_back({attn(p + ".self_attn"), lin(p + ".linear1", c.enc_ffn, d),
+                      lin(p + ".linear2", d, c.enc_ffn), norm(p + ".norm1", d), norm(p + ".norm2", d)});
+  }
+  w->proj0 = lin("encoder_to_decoder_projection.0", d, d);
+  w->proj1 = lin("encoder_to_decoder_projection.1", d, d);
+  w->gauss_b = mat("pos_embedding.gauss_B", 3, d / 2);
+  w->qproj0 = lin("query_projection.0", d, d);
+  w->qproj1 = lin("query_projection.1", d, d);
+  for (int i = 0; i < c.dec_layers; ++i) {
+    const std::string p = "decoder.layers." + std::to_string(i);
+    w->dec.push_back({attn(p + ".self_attn"), attn(p + ".multihead_attn"), lin(p + ".linear1", c.dec_ffn, d),
+                      lin(p + ".linear2", d, c.dec_ffn), norm(p + ".norm1", d), norm(p + ".norm2", d),
+                      norm(p + ".norm3", d)});
+  }
+  w->dec_norm = norm("decoder.norm", d);
+  const std::int64_t h = c.head_hidden;
+  const std::int64_t outs[5] = {c.num_classes + 1, 3, 3, c.num_angle_bins, c.num_angle_bins};
+  w->head0_all.w.resize(5 * h, d);
+  w->head0_all.b.resize(5 * h);
+  for (int k = 0; k < 5; ++k) {
+    const std::string p = std::string("mlp_heads.") + kHeadNames[k];
+    const Linear l0 = lin(p + ".0", h, d);
+    w->head0_all.w.middleRows(k * h, h) = l0.w;
+    w->head0_all.b.segment(k * h, h) = l0.b;
+    w->head1[static_cast<std::size_t>(k)] = lin(p + ".1", h, h);
+    w->head2[static_cast<std::size_t>(k)] = lin(p + ".2", outs[k], h);
+  }
+  w->part0 = lin("part_head.0", c.part_hidden, d + 3);
+  w->part1 = lin("part_head.1", 4, c.part_hidden);
+  // Nothing unexpected may hide in the file.
+  std::sort(used.begin(), used.end());
+  for (const auto& name : f.names()) {
+    DS3D_CHECK_AS(IoError, std::binary_search(used.begin(), used.end(), name), "ds3d::SparseDetector::load: ",
+                  f.source(), ": unexpected tensor '", name, "'");
+  }
+  return SparseDetector(std::move(c), std::move(w));
+}
+
+std::vector<Box3> SparseDetector::detect(Eigen::Ref<const Points3f> xyz, int num_threads) const {
+  return run(xyz, DetectOptions{.num_threads = num_threads, .part_logits = false}).boxes;
+}
+
+DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectOptions& options) const {
+  const int threads = detail::resolve_num_threads(options.num_threads, "ds3d::SparseDetector::run");
+  const Eigen::Index n = xyz.rows();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    DS3D_CHECK(xyz.row(i).allFinite(), "ds3d::SparseDetector::run: xyz row ", i, " is not finite (",
+               xyz.row(i), ")");
+  }
+  DetectorOutput out;
+  out.class_prob.resize(0, config_.num_classes);
+  if (n == 0) return out;
+  const Weights& w = *w_;
+  const DetectorConfig& c = config_;
+  const Mat p = xyz;  // [n, 3]
+  const RowVec scene_min = p.colwise().minCoeff();
+  const RowVec scene_max = p.colwise().maxCoeff();
+  const RowVec extent = scene_max - scene_min;
+
+  // ---- pre-encoder: FPS, ball query, shared MLP, max-pool --------------------------------
+  const Eigen::Index t = std::min<Eigen::Index>(c.num_centres, n);
+  out.centre_indices = farthest_point_sample(p, t, c.fps_padding_norm2);
+  Mat centres(t, 3);  // [t, 3]
+  for (Eigen::Index i = 0; i < t; ++i) centres.row(i) = p.row(out.centre_indices[static_cast<std::size_t>(i)]);
+  const Eigen::Index s = c.sa_samples;
+  const float r = c.sa_radius;
+  const float r2 = r * r;
+  Mat grouped(t * s, 3);  // [t * s, 3] offsets / r
+  for (Eigen::Index i = 0; i < t; ++i) {
+    const float cx = centres(i, 0), cy = centres(i, 1), cz = centres(i, 2);
+    Eigen::Index found = 0;
+    Eigen::Index first = 0;
+    for (Eigen::Index j = 0; j < n && found < s; ++j) {
+      const float dx = cx - p(j, 0), dy = cy - p(j, 1), dz = cz - p(j, 2);
+      const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
+      if ((xx + yy) + zz < r2) {
+        if (found == 0) first = j;
+        grouped.row(i * s + found) = (p.row(j) - centres.row(i)) / r;
+        ++found;
+      }
+    }
+    for (Eigen::Index k = found; k < s; ++k) grouped.row(i * s + k) = (p.row(first) - centres.row(i)) / r;
+  }
+  Mat x = grouped;
+  for (const auto& l : w.sa_mlp) x = linear_relu(x, l);  // [t * s, d]
+  const Eigen::Index d = c.d_model;
+  Mat feats(t, d);  // [t, d]
+  for (Eigen::Index i = 0; i < t; ++i) feats.row(i) = x.middleRows(i * s, s).colwise().maxCoeff();
+
+  // ---- encoder ----------------------------------------------------------------------------
+  Mat enc = feats;
+  for (const auto& l : w.enc) {
+    Mat y = layer_norm(enc, l.n1, c.layer_norm_eps);
+    enc += attention(y, y, y, l.self_attn, c.num_heads, threads);
+    y = layer_norm(enc, l.n2, c.layer_norm_eps);
+    enc += linear(linear_relu(y, l.l1), l.l2);
+  }
+  const Mat memory = linear_relu(linear_relu(enc, w.proj0), w.proj1);  // [t, d]
+
+  // ---- queries and positional embeddings ---------------------------------------------------
+  const Eigen::Index nq = std::min<Eigen::Index>(c.num_queries, t);
+  out.query_indices = farthest_point_sample(centres, nq, c.fps_padding_norm2);
+  Mat qxyz(nq, 3);  // [nq, 3]
+  for (Eigen::Index i = 0; i < nq; ++i) qxyz.row(i) = centres.row(out.query_indices[static_cast<std::size_t>(i)]);
+  const RowVec pe_extent = extent.cwiseMax(1e-6F);
+  auto fourier = [&](const Mat& pts) {  // [m, 3] -> [m, d]
+    Mat xh(pts.rows(), 3);
+    for (Eigen::Index i = 0; i < pts.rows(); ++i) {
+      xh.row(i) = ((pts.row(i) - scene_min).array() / pe_extent.array()) * static_cast<float>(2.0 * std::numbers::pi);
+    }
+    const Mat u = xh * w.gauss_b;  // [m, d/2]
+    Mat e(pts.rows(), d);
+    e.leftCols(d / 2) = u.array().sin();
+    e.rightCols(d / 2) = u.array().cos();
+    return e;
+  };
+  const Mat qpos = linear_relu(linear_relu(fourier(qxyz), w.qproj0), w.qproj1);  // [nq, d]
+  const Mat mpos = fourier(centres);                                             // [t, d]
+  const Mat mem_k = memory + mpos;
+
+  // ---- decoder ---------------------------------------------------------------------------------
+  Mat tgt = Mat::Zero(nq, d);  // [nq, d]
+  for (const auto& l : w.dec) {
+    Mat y = layer_norm(tgt, l.n1, c.layer_norm_eps);
+    const Mat qk = y + qpos;
+    tgt += attention(qk, qk, y, l.self_attn, c.num_heads, threads);
+    y = layer_norm(tgt, l.n2, c.layer_norm_eps);
+    tgt += attention(y + qpos, mem_k, memory, l.cross_attn, c.num_heads, threads);
+    y = layer_norm(tgt, l.n3, c.layer_norm_eps);
+    tgt += linear(linear_relu(y, l.l1), l.l2);
+  }
+  const Mat hin = layer_norm(tgt, w.dec_norm, c.layer_norm_eps);  // [nq, d]
+
+  // ---- heads and box decoding ----------------------------------------------------------------
+  const Mat h0 = linear_relu(hin, w.head0_all);  // [nq, 5 h]
+  const Eigen::Index hh = c.head_hidden;
+  std::array<Mat, 5> ho;
+  for (std::size_t k = 0; k < 5; ++k) {
+    const Mat h1 = linear_relu(h0.middleCols(static_cast<Eigen::Index>(k) * hh, hh), w.head1[k]);
+    ho[k] = linear(h1, w.head2[k]);
+  }
+  const Eigen::Index nk = c.num_classes;
+  const int nb = c.num_angle_bins;
+  const RowVec size_scale = extent.cwiseMax(c.min_size_extent);
+  out.class_prob.resize(nq, nk);
+  out.proposals.resize(static_cast<std::size_t>(nq));
+  const auto bin_width = static_cast<float>(2.0 * std::numbers::pi / nb);
+  const auto half_bin = static_cast<float>(std::numbers::pi / nb);
+  const auto pi_f = static_cast<float>(std::numbers::pi);
+  const auto two_pi_f = static_cast<float>(2.0 * std::numbers::pi);
+  for (Eigen::Index q = 0; q < nq; ++q) {
+    Box3& b = out.proposals[static_cast<std::size_t>(q)];
+    for (int a = 0; a < 3; ++a) {
+      b.centre[a] = qxyz(q, a) + (sigmoid(ho[1](q, a)) - 0.5F);
+      b.size[a] = sigmoid(ho[2](q, a)) * size_scale[a];
+    }
+    Eigen::Index bin = 0;
+    ho[3].row(q).maxCoeff(&bin);
+    float yaw = static_cast<float>(bin) * bin_width + ho[4](q, bin) * half_bin;
+    if (yaw > pi_f) yaw -= two_pi_f;
+    b.yaw = yaw;
+    // softmax over K + 1; objectness = 1 - p[background]
+    const RowVec logits = ho[0].row(q);
+    const float mx = logits.maxCoeff();
+    const RowVec e = (logits.array() - mx).exp();
+    const RowVec prob = e / e.sum();
+    b.objectness = 1.0F - prob[nk];
+    out.class_prob.row(q) = prob.head(nk);
+    Eigen::Index label = 0;
+    out.class_prob.row(q).maxCoeff(&label);
+    b.label = static_cast<std::int32_t>(label);
+    b.score = static_cast<float>(static_cast<double>(prob[label]) * static_cast<double>(b.objectness));
+  }
+  for (const std::size_t i : postprocess(xyz, out.proposals)) out.boxes.push_back(out.proposals[i]);
+
+  // ---- part head (spec §6.3 option A) ----------------------------------------------------------
+  if (options.part_logits) {
+    // Linear in the interpolated features, so project tokens first: G = enc W0a^T  [t, part_hidden].
+    const Mat g = enc * w.part0.w.leftCols(d).transpose();
+    const Mat wxyz = w.part0.w.rightCols(3);  // [part_hidden, 3]
+    out.part_logits.resize(n, 4);
+    const Eigen::Index k = std::min<Eigen::Index>(3, t);
+    Mat hidden(n, c.part_hidden);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      Eigen::Index idx[3] = {0, 0, 0};
+      float dist[3] = {INFINITY, INFINITY, INFINITY};
+      for (Eigen::Index j = 0; j < t; ++j) {
+        const float dx = p(i, 0) - centres(j, 0), dy = p(i, 1) - centres(j, 1), dz = p(i, 2) - centres(j, 2);
+        const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
+        const float d2 = (xx + yy) + zz;
+        if (d2 < dist[k - 1]) {  // insert, keeping earlier (lower-index) entries first on ties
+          Eigen::Index m = k - 1;
+          while (m > 0 && d2 < dist[m - 1]) {
+            dist[m] = dist[m - 1];
+            idx[m] = idx[m - 1];
+            --m;
+          }
+          dist[m] = d2;
+          idx[m] = j;
+        }
+      }
+      float wt[3] = {0.0F, 0.0F, 0.0F};
+      float wsum = 0.0F;
+      for (Eigen::Index m = 0; m < k; ++m) {
+        wt[m] = 1.0F / (dist[m] + 1e-8F);
+        wsum += wt[m];
+      }
+      RowVec row = RowVec::Zero(c.part_hidden);
+      for (Eigen::Index m = 0; m < k; ++m) row += (wt[m] / wsum) * g.row(idx[m]);
+      const RowVec xn = (p.row(i) - scene_min).array() / pe_extent.array();
+      row += xn * wxyz.transpose();
+      hidden.row(i) = (row + w.part0.b).cwiseMax(0.0F);
+    }
+    out.part_logits = linear(hidden, w.part1);
+  }
+  return out;
+}
+
+std::vector<std::size_t> SparseDetector::postprocess(Eigen::Ref<const Points3f> xyz,
+                                                     const std::vector<Box3>& proposals) const {
+  const std::size_t q = proposals.size();
+  std::vector<char> keep(q, 0);
+  bool any = false;
+  for (std::size_t b = 0; b < q; ++b) {
+    const Box3& box = proposals[b];
+    const double cs = std::cos(static_cast<double>(box.yaw));
+    const double sn = std::sin(static_cast<double>(box.yaw));
+    const Eigen::Vector3d ctr = box.centre.cast<double>();
+    const Eigen::Vector3d half = box.size.cast<double>() / 2.0;
+    int count = 0;
+    for (Eigen::Index i = 0; i < xyz.rows() && count < config_.min_points_in_box; ++i) {
+      const double dx = static_cast<double>(xyz(i, 0)) - ctr.x();
+      const double dy = static_cast<double>(xyz(i, 1)) - ctr.y();
+      const double dz = static_cast<double>(xyz(i, 2)) - ctr.z();
+      const double lx = cs * dx - sn * dy;
+      const double ly = sn * dx + cs * dy;
+      if (std::abs(lx) < half.x() && std::abs(ly) < half.y() && std::abs(dz) <= half.z()) ++count;
+    }
+    keep[b] = static_cast<char>(count >= config_.min_points_in_box);
+    any = any || keep[b];
+  }
+  if (!any && q > 0) {
+    std::size_t best = 0;
+    for (std::size_t b = 1; b < q; ++b) {
+      if (proposals[b].objectness > proposals[best].objectness) best = b;
+    }
+    keep[best] = 1;
+  }
+  std::vector<std::size_t> cand;
+  for (std::size_t b = 0; b < q; ++b) {
+    if (keep[b] && static_cast<double>(proposals[b].objectness) > static_cast<double>(config_.score_threshold)) {
+      cand.push_back(b);
+    }
+  }
+  std::stable_sort(cand.begin(), cand.end(),
+                   [&](std::size_t a, std::size_t b) { return proposals[a].objectness > proposals[b].objectness; });
+  std::vector<std::size_t> kept;
+  for (const std::size_t i : cand) {
+    bool suppressed = false;
+    for (const std::size_t j : kept) {
+      if (proposals[j].label == proposals[i].label &&
+          box::aabb_iou(proposals[i], proposals[j]) > static_cast<double>(config_.nms_iou)) {
+        suppressed = true;
+        break;
+      }
+    }
+    if (!suppressed) kept.push_back(i);
+  }
+  return kept;
+}
+
+}  // namespace ds3d
