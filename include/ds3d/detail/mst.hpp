@@ -5,7 +5,6 @@
 // d_mr(i,j) = max{core(i), core(j), d(i,j)}. Not API: see ds3d/hdbscan.hpp.
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -242,63 +241,89 @@ inline std::vector<MstEdge> prim_precomputed(const double* dist, std::size_t n,
 }
 
 // KD-tree Borůvka on the mutual-reachability graph (McInnes & Healy 2017, "Accelerated
-// Hierarchical Density Based Clustering", §3, single-tree variant). Each round every point looks
-// for its cheapest edge to another component; a KD-tree node is skipped when it lies entirely in
-// the point's component or when max{core(q), min core in node, box distance} exceeds the best
-// edge known for the point's component. Pruning is strict (">") and candidates are ordered by
-// (weight, target index), so the edge each point reports, and hence the MST, does not depend on
-// the thread schedule. Cycles among equal-weight picks are dropped by union-find, which keeps the
-// forest minimal. O(n D) memory; about O(log n) rounds of n pruned queries.
+// Hierarchical Density Based Clustering", §3, single-tree variant). Each round every point keeps
+// a candidate edge to another component: seeded from its k nearest neighbours (whose mutual
+// reachability is max{κ(q), κ(p)}; when that equals κ(q) it is provably the cheapest edge of q),
+// kept while its target stays in another component, and otherwise searched in a KD-tree that
+// skips nodes lying entirely in q's component or whose lower bound max{κ(q), min κ in node, box
+// distance} cannot beat the best known edge of q's component. The component bounds are computed
+// before the (parallel) searches and only strictly better edges are accepted, so every point's
+// result, and the MST, is independent of the thread count. Cycles among equal-weight picks are
+// dropped by union-find, which keeps the forest minimal. O(n (D + k)) memory; O(log n) rounds.
 class BoruvkaKdTree {
  public:
   BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, const std::vector<double>& core,
-                int num_threads)
+                const std::vector<std::uint32_t>& neighbors, std::size_t k1, int num_threads)
       : n_(n), dim_(dim), threads_(num_threads) {
     perm_.resize(n);
     std::iota(perm_.begin(), perm_.end(), 0U);
     pts_.resize(n * dim);
     core_.resize(n);
     build(data, core);
+    // Seed candidates from the kNN lists (in tree positions).
+    std::vector<std::uint32_t> pos(n);
+    for (std::size_t i = 0; i < n; ++i) pos[perm_[i]] = static_cast<std::uint32_t>(i);
+    cand_w_.assign(n, std::numeric_limits<double>::infinity());
+    cand_t_.assign(n, 0U);
+    if (k1 > 0) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t* nb = neighbors.data() + static_cast<std::size_t>(perm_[i]) * k1;
+        for (std::size_t t = 0; t < k1; ++t) {
+          const std::uint32_t j = pos[nb[t]];
+          if (j == i) continue;
+          const double w = std::max({core_[i], core_[j],
+                                     std::sqrt(sq_dist_seq(pts_.data() + i * dim_,
+                                                           pts_.data() + static_cast<std::size_t>(j) * dim_, dim_))});
+          if (w < cand_w_[i] || (w == cand_w_[i] && j < cand_t_[i])) {
+            cand_w_[i] = w;
+            cand_t_[i] = j;
+          }
+        }
+      }
+    }
   }
 
   std::vector<MstEdge> run() {
     std::vector<MstEdge> edges;
     edges.reserve(n_ - 1);
-    // Union-find over original point ids.
     uf_parent_.resize(n_);
     std::iota(uf_parent_.begin(), uf_parent_.end(), 0U);
-    std::vector<std::uint32_t> comp(n_);  // component of tree position
-    std::vector<double> best_w(n_);
-    std::vector<std::uint32_t> best_t(n_);
+    std::vector<std::uint32_t> comp(n_);  // component (root point id) of each tree position
     std::vector<double> comp_w(n_);
-    std::vector<std::uint32_t> comp_q(n_), comp_t(n_);
+    std::vector<std::uint32_t> comp_q(n_);
     const double inf = std::numeric_limits<double>::infinity();
-    std::unique_ptr<std::atomic<double>[]> bound(new std::atomic<double>[n_]);
     while (edges.size() + 1 < n_) {
       for (std::size_t i = 0; i < n_; ++i) comp[i] = find(perm_[i]);
       label_nodes(comp);
-      for (std::size_t i = 0; i < n_; ++i) bound[i].store(inf, std::memory_order_relaxed);
-      comp_ = comp.data();
-      bound_ = bound.get();
-      parallel_chunks(n_, std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)),
-                      threads_, [&](std::size_t b, std::size_t e, std::size_t) {
-                        for (std::size_t i = b; i < e; ++i) query(i, best_w[i], best_t[i]);
-                      });
-      // Deterministic per-component reduction: (weight, tree position of q).
+      // Drop candidates that now point into the own component; component bounds from the rest.
       std::fill(comp_w.begin(), comp_w.end(), inf);
       for (std::size_t i = 0; i < n_; ++i) {
+        if (cand_w_[i] < inf && comp[cand_t_[i]] == comp[i]) cand_w_[i] = inf;
+        if (cand_w_[i] < comp_w[comp[i]]) {
+          comp_w[comp[i]] = cand_w_[i];
+          comp_q[comp[i]] = static_cast<std::uint32_t>(i);
+        }
+      }
+      comp_ = comp.data();
+      bound_ = comp_w.data();
+      parallel_chunks(n_, std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)),
+                      threads_, [&](std::size_t b, std::size_t e, std::size_t) {
+                        for (std::size_t i = b; i < e; ++i) query(i);
+                      });
+      // Deterministic reduction: smallest weight, then smallest tree position.
+      for (std::size_t i = 0; i < n_; ++i) {
         const auto c = comp[i];
-        if (best_w[i] < comp_w[c]) {
-          comp_w[c] = best_w[i];
+        if (cand_w_[i] < comp_w[c] || (cand_w_[i] == comp_w[c] && cand_w_[i] < inf && i < comp_q[c])) {
+          comp_w[c] = cand_w_[i];
           comp_q[c] = static_cast<std::uint32_t>(i);
-          comp_t[c] = best_t[i];
         }
       }
       std::size_t added = 0;
       for (std::size_t c = 0; c < n_; ++c) {
         if (comp_w[c] == inf) continue;
-        const std::uint32_t a = perm_[comp_q[c]];
-        const std::uint32_t b = perm_[comp_t[c]];
+        const std::uint32_t qi = comp_q[c];
+        const std::uint32_t a = perm_[qi];
+        const std::uint32_t b = perm_[cand_t_[qi]];
         const auto ra = find(a);
         const auto rb = find(b);
         if (ra == rb) continue;
@@ -423,43 +448,39 @@ class BoruvkaKdTree {
     return std::sqrt(s);
   }
 
-  static void atomic_min(std::atomic<double>& a, double v) {
-    double cur = a.load(std::memory_order_relaxed);
-    while (v < cur && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
-    }
-  }
-
-  void query(std::size_t qi, double& out_w, std::uint32_t& out_t) const {
+  // Improves point qi's candidate edge: only strictly better edges than min(own candidate,
+  // component bound) are accepted, so the outcome does not depend on other points' progress.
+  void query(std::size_t qi) {
     const std::uint32_t cq = comp_[qi];
     const double cqore = core_[qi];
-    out_w = std::numeric_limits<double>::infinity();
-    out_t = 0;
-    std::atomic<double>& cb = bound_[cq];
-    if (cqore > cb.load(std::memory_order_relaxed)) return;
+    double best_w = cand_w_[qi];
+    if (best_w == cqore) return;  // κ(q) is a lower bound of every edge of q: optimal already
+    const double bound0 = std::min(best_w, bound_[cq]);
+    if (cqore >= bound0) return;  // cannot beat the component's best edge
     const double* q = pts_.data() + qi * dim_;
-    double best_w = std::numeric_limits<double>::infinity();
-    std::uint32_t best_t = 0;
-    // Explicit stack of (node, lower bound).
+    double bound = bound0;
+    std::uint32_t best_t = cand_t_[qi];
+    bool improved = false;
     std::pair<std::int32_t, double> stack[128];
     int top = 0;
     stack[top++] = {0, std::max(cqore, nodes_[0].min_core)};
     while (top > 0) {
       const auto [k, lb] = stack[--top];
-      const double bound = std::min(best_w, cb.load(std::memory_order_relaxed));
-      if (lb > bound) continue;
+      if (lb >= bound) continue;
       const Node& nd = nodes_[static_cast<std::size_t>(k)];
       if (nd.comp == cq) continue;
       if (nd.left < 0) {
         for (auto i = nd.begin; i < nd.end; ++i) {
           if (comp_[i] == cq) continue;
           const double lo = cqore > core_[i] ? cqore : core_[i];
-          if (lo > best_w) continue;
-          const double d =
-              std::sqrt(sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_));
+          if (lo >= bound) continue;
+          const double d = std::sqrt(
+              sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_));
           const double mr = d > lo ? d : lo;
-          if (mr < best_w || (mr == best_w && i < best_t)) {
-            best_w = mr;
+          if (mr < bound) {
+            bound = mr;
             best_t = i;
+            improved = true;
           }
         }
         continue;
@@ -470,16 +491,17 @@ class BoruvkaKdTree {
       const double lbr = std::max({cqore, nodes_[r].min_core, box_dist(q, r)});
       // Push the farther child first so the nearer one is searched first.
       if (lbl <= lbr) {
-        stack[top++] = {nd.right, lbr};
-        stack[top++] = {nd.left, lbl};
+        if (lbr < bound) stack[top++] = {nd.right, lbr};
+        if (lbl < bound) stack[top++] = {nd.left, lbl};
       } else {
-        stack[top++] = {nd.left, lbl};
-        stack[top++] = {nd.right, lbr};
+        if (lbl < bound) stack[top++] = {nd.left, lbl};
+        if (lbr < bound) stack[top++] = {nd.right, lbr};
       }
     }
-    out_w = best_w;
-    out_t = best_t;
-    if (best_w < std::numeric_limits<double>::infinity()) atomic_min(cb, best_w);
+    if (improved) {
+      cand_w_[qi] = bound;
+      cand_t_[qi] = best_t;
+    }
   }
 
   std::size_t n_, dim_;
@@ -490,14 +512,18 @@ class BoruvkaKdTree {
   std::vector<Node> nodes_;
   std::vector<double> lo_, hi_;
   std::vector<std::uint32_t> uf_parent_;
+  std::vector<double> cand_w_;         // per tree position: best known edge weight
+  std::vector<std::uint32_t> cand_t_;  // ... and its target (tree position)
   const std::uint32_t* comp_ = nullptr;
-  std::atomic<double>* bound_ = nullptr;
+  const double* bound_ = nullptr;
 };
 
 inline std::vector<MstEdge> boruvka_kdtree(const double* data, std::size_t n, std::size_t dim,
-                                           const std::vector<double>& core, int num_threads) {
+                                           const std::vector<double>& core,
+                                           const std::vector<std::uint32_t>& neighbors,
+                                           std::size_t k1, int num_threads) {
   if (n < 2) return {};
-  BoruvkaKdTree t(data, n, dim, core, num_threads);
+  BoruvkaKdTree t(data, n, dim, core, neighbors, k1, num_threads);
   return t.run();
 }
 
