@@ -61,7 +61,7 @@ inline std::string to_string(MstAlgorithm algorithm) {
 namespace detail {
 
 /// kAuto switches from Prim to Borůvka at this many points (see docs/hdbscan.md).
-inline constexpr std::size_t kBoruvkaMinPoints = 4096;
+inline constexpr std::size_t kBoruvkaMinPoints = 1500;
 
 /// k of the core distance as the reference computes it: min_samples (or min_cluster_size),
 /// clamped to n - 1, raised to 1.

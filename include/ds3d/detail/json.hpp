@@ -47,9 +47,7 @@ class JsonValue {
   [[nodiscard]] double as_number() const { return get<double>("number"); }
   [[nodiscard]] const std::string& as_string() const { return get<std::string>("string"); }
   [[nodiscard]] const Array& as_array() const { return *get<std::shared_ptr<Array>>("array"); }
-  [[nodiscard]] const Object& as_object() const {
-    return *get<std::shared_ptr<Object>>("object");
-  }
+  [[nodiscard]] const Object& as_object() const { return *get<std::shared_ptr<Object>>("object"); }
   /// Integer value; throws IoError if the number is not an exact integer in int64 range.
   [[nodiscard]] std::int64_t as_int() const {
     const double d = as_number();
@@ -215,10 +213,14 @@ class JsonParser {
     for (int k = 0; k < 4; ++k) {
       const char c = s_[pos_++];
       v <<= 4U;
-      if (c >= '0' && c <= '9') v |= static_cast<unsigned>(c - '0');
-      else if (c >= 'a' && c <= 'f') v |= static_cast<unsigned>(c - 'a' + 10);
-      else if (c >= 'A' && c <= 'F') v |= static_cast<unsigned>(c - 'A' + 10);
-      else fail("invalid \\u escape");
+      if (c >= '0' && c <= '9')
+        v |= static_cast<unsigned>(c - '0');
+      else if (c >= 'a' && c <= 'f')
+        v |= static_cast<unsigned>(c - 'a' + 10);
+      else if (c >= 'A' && c <= 'F')
+        v |= static_cast<unsigned>(c - 'A' + 10);
+      else
+        fail("invalid \\u escape");
     }
     return v;
   }
@@ -291,14 +293,30 @@ class JsonParser {
       if (pos_ >= s_.size()) fail("unterminated escape");
       const char e = s_[pos_++];
       switch (e) {
-        case '"': out += '"'; break;
-        case '\\': out += '\\'; break;
-        case '/': out += '/'; break;
-        case 'b': out += '\b'; break;
-        case 'f': out += '\f'; break;
-        case 'n': out += '\n'; break;
-        case 'r': out += '\r'; break;
-        case 't': out += '\t'; break;
+        case '"':
+          out += '"';
+          break;
+        case '\\':
+          out += '\\';
+          break;
+        case '/':
+          out += '/';
+          break;
+        case 'b':
+          out += '\b';
+          break;
+        case 'f':
+          out += '\f';
+          break;
+        case 'n':
+          out += '\n';
+          break;
+        case 'r':
+          out += '\r';
+          break;
+        case 't':
+          out += '\t';
+          break;
         case 'u': {
           unsigned cp = parse_hex4();
           if (cp >= 0xD800U && cp <= 0xDBFFU) {
@@ -312,7 +330,8 @@ class JsonParser {
           append_utf8(out, cp);
           break;
         }
-        default: fail("invalid escape");
+        default:
+          fail("invalid escape");
       }
     }
   }
@@ -333,11 +352,21 @@ class JsonParser {
   out.reserve(s.size() + 2);
   for (const char c : s) {
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
       default:
         if (static_cast<unsigned char>(c) < 0x20U) {
           static constexpr char kHex[] = "0123456789abcdef";

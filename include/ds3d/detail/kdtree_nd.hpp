@@ -105,14 +105,14 @@ void knn_core_distances_impl(const DenseRowsNd& ds, std::size_t k, int num_threa
                       core[i] = std::sqrt(worst);
                       if (neighbors != nullptr) {
                         std::copy_n(idx.data(), found, neighbors->data() + i * (k + 1));
-                        for (std::size_t t = found; t <= k; ++t) (*neighbors)[i * (k + 1) + t] = idx[0];
+                        for (std::size_t t = found; t <= k; ++t)
+                          (*neighbors)[i * (k + 1) + t] = idx[0];
                       }
                     }
                   });
 }
 
-inline std::vector<double> knn_core_distances(const DenseRowsNd& ds, std::size_t k,
-                                              int num_threads,
+inline std::vector<double> knn_core_distances(const DenseRowsNd& ds, std::size_t k, int num_threads,
                                               std::vector<std::uint32_t>* neighbors = nullptr) {
   std::vector<double> core;
   if (ds.dim == 3) {

@@ -271,9 +271,10 @@ class BoruvkaKdTree {
         for (std::size_t t = 0; t < k1; ++t) {
           const std::uint32_t j = pos[nb[t]];
           if (j == i) continue;
-          const double w = std::max({core_[i], core_[j],
-                                     std::sqrt(sq_dist_seq(pts_.data() + i * dim_,
-                                                           pts_.data() + static_cast<std::size_t>(j) * dim_, dim_))});
+          const double w = std::max(
+              {core_[i], core_[j],
+               std::sqrt(sq_dist_seq(pts_.data() + i * dim_,
+                                     pts_.data() + static_cast<std::size_t>(j) * dim_, dim_))});
           if (w < cand_w_[i] || (w == cand_w_[i] && j < cand_t_[i])) {
             cand_w_[i] = w;
             cand_t_[i] = j;
@@ -291,6 +292,7 @@ class BoruvkaKdTree {
     std::vector<std::uint32_t> comp(n_);  // component (root point id) of each tree position
     std::vector<double> comp_w(n_);
     std::vector<std::uint32_t> comp_q(n_);
+    std::vector<std::uint32_t> comp_start(n_ + 1), fill(n_), members(n_), roots;
     const double inf = std::numeric_limits<double>::infinity();
     while (edges.size() + 1 < n_) {
       for (std::size_t i = 0; i < n_; ++i) comp[i] = find(perm_[i]);
@@ -305,15 +307,34 @@ class BoruvkaKdTree {
         }
       }
       comp_ = comp.data();
-      bound_ = comp_w.data();
-      parallel_chunks(n_, std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)),
-                      threads_, [&](std::size_t b, std::size_t e, std::size_t) {
-                        for (std::size_t i = b; i < e; ++i) query(i);
+      // Members of each component, contiguous and in tree order (counting sort). Each
+      // component is searched by one thread in this fixed order, so its running bound, and
+      // hence every result, is the same for any thread count.
+      std::fill(comp_start.begin(), comp_start.end(), 0U);
+      for (std::size_t i = 0; i < n_; ++i) ++comp_start[comp[i] + 1];
+      for (std::size_t c = 0; c < n_; ++c) comp_start[c + 1] += comp_start[c];
+      std::copy(comp_start.begin(), comp_start.end() - 1, fill.begin());
+      for (std::size_t i = 0; i < n_; ++i) members[fill[comp[i]]++] = static_cast<std::uint32_t>(i);
+      roots.clear();
+      for (std::size_t c = 0; c < n_; ++c) {
+        if (comp_start[c + 1] > comp_start[c]) roots.push_back(static_cast<std::uint32_t>(c));
+      }
+      parallel_chunks(roots.size(),
+                      std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)), threads_,
+                      [&](std::size_t b, std::size_t e, std::size_t) {
+                        for (std::size_t r = b; r < e; ++r) {
+                          const auto c = roots[r];
+                          double bound = comp_w[c];
+                          for (auto m = comp_start[c]; m < comp_start[c + 1]; ++m) {
+                            query(members[m], bound);
+                          }
+                        }
                       });
       // Deterministic reduction: smallest weight, then smallest tree position.
       for (std::size_t i = 0; i < n_; ++i) {
         const auto c = comp[i];
-        if (cand_w_[i] < comp_w[c] || (cand_w_[i] == comp_w[c] && cand_w_[i] < inf && i < comp_q[c])) {
+        if (cand_w_[i] < comp_w[c] ||
+            (cand_w_[i] == comp_w[c] && cand_w_[i] < inf && i < comp_q[c])) {
           comp_w[c] = cand_w_[i];
           comp_q[c] = static_cast<std::uint32_t>(i);
         }
@@ -448,14 +469,14 @@ class BoruvkaKdTree {
     return std::sqrt(s);
   }
 
-  // Improves point qi's candidate edge: only strictly better edges than min(own candidate,
-  // component bound) are accepted, so the outcome does not depend on other points' progress.
-  void query(std::size_t qi) {
+  // Improves point qi's candidate edge given `comp_bound`, the best edge weight known for its
+  // component (tightened in place). Only strictly better edges are accepted.
+  void query(std::size_t qi, double& comp_bound) {
     const std::uint32_t cq = comp_[qi];
     const double cqore = core_[qi];
-    double best_w = cand_w_[qi];
-    if (best_w == cqore) return;  // κ(q) is a lower bound of every edge of q: optimal already
-    const double bound0 = std::min(best_w, bound_[cq]);
+    const double own = cand_w_[qi];
+    if (own == cqore) return;  // κ(q) is a lower bound of every edge of q: optimal already
+    const double bound0 = std::min(own, comp_bound);
     if (cqore >= bound0) return;  // cannot beat the component's best edge
     const double* q = pts_.data() + qi * dim_;
     double bound = bound0;
@@ -474,8 +495,8 @@ class BoruvkaKdTree {
           if (comp_[i] == cq) continue;
           const double lo = cqore > core_[i] ? cqore : core_[i];
           if (lo >= bound) continue;
-          const double d = std::sqrt(
-              sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_));
+          const double d =
+              std::sqrt(sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_));
           const double mr = d > lo ? d : lo;
           if (mr < bound) {
             bound = mr;
@@ -501,6 +522,7 @@ class BoruvkaKdTree {
     if (improved) {
       cand_w_[qi] = bound;
       cand_t_[qi] = best_t;
+      comp_bound = std::min(comp_bound, bound);
     }
   }
 
@@ -515,7 +537,6 @@ class BoruvkaKdTree {
   std::vector<double> cand_w_;         // per tree position: best known edge weight
   std::vector<std::uint32_t> cand_t_;  // ... and its target (tree position)
   const std::uint32_t* comp_ = nullptr;
-  const double* bound_ = nullptr;
 };
 
 inline std::vector<MstEdge> boruvka_kdtree(const double* data, std::size_t n, std::size_t dim,
