@@ -228,6 +228,15 @@ struct SlamFrontend::Impl {
   }
 
   // ---- helpers -------------------------------------------------------------------------------
+  // ORB-SLAM2 counts an observation with depth twice (it constrains like a stereo pair).
+  [[nodiscard]] int obs_weight(const MapPoint& p) const {
+    int n = 0;
+    for (const auto& [kf, idx] : p.obs) {
+      n += keyframes[static_cast<std::size_t>(kf)].data.depth[static_cast<std::size_t>(idx)] > 0 ? 2 : 1;
+    }
+    return n;
+  }
+
   [[nodiscard]] Observation observation(const FrameData& f, std::size_t i) const {
     Observation o;
     o.pixel = f.uv[i].cast<double>();
@@ -570,7 +579,7 @@ struct SlamFrontend::Impl {
     int ref_matches = 0;
     for (const int pid : keyframes[static_cast<std::size_t>(ref_kf)].data.points) {
       if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad &&
-          static_cast<int>(points[static_cast<std::size_t>(pid)].obs.size()) >= min_obs) {
+          obs_weight(points[static_cast<std::size_t>(pid)]) >= min_obs) {
         ++ref_matches;
       }
     }
@@ -660,14 +669,15 @@ struct SlamFrontend::Impl {
   }
 
   // ORB-SLAM2's MapPointCulling: recent points must be found in >= 25 % of the frames that
-  // should have seen them, and be observed by >= 3 keyframes once two keyframes have passed.
+  // should have seen them, and have an observation weight > 3 (two keyframes with depth) once
+  // two keyframes have passed.
   void cull_recent_points(int current_kf) {
     std::vector<int> keep;
     for (const int pid : recent_points) {
       MapPoint& p = points[static_cast<std::size_t>(pid)];
       if (p.bad) continue;
       const int age = current_kf - p.first_kf;
-      if (static_cast<double>(p.found) / p.visible < 0.25 || (age >= 2 && p.obs.size() <= 2)) {
+      if (static_cast<double>(p.found) / p.visible < 0.25 || (age >= 2 && obs_weight(p) <= 3)) {
         erase_point(pid);
       } else if (age < 3) {
         keep.push_back(pid);
