@@ -1,0 +1,108 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#pragma once
+/// @file dataset.hpp
+/// @brief TUM RGB-D and Bonn RGB-D Dynamic folders, read as they come, frame by frame
+/// (compiled into ds3d::slam; needs OpenCV imgcodecs).
+///
+/// A folder holds `rgb.txt` and `depth.txt` (`timestamp filename` lines), the images they list
+/// (.png or .jpg, paths relative to the folder), optionally `groundtruth.txt` (TUM trajectory)
+/// and `camera.txt` (`key value` lines: fx fy cx cy k1 k2 p1 p2 k3 depth_scale, optional width
+/// height). RGB and depth are associated like the TUM tool associate.py (Sturm et al. 2012):
+/// greedy one-to-one on |t_rgb - (t_depth + offset)| < max_difference.
+
+#include <cstddef>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ds3d/camera.hpp"
+
+namespace ds3d {
+
+/// One associated RGB-D frame, images loaded.
+struct RgbdFrame {
+  std::size_t index = 0;         ///< position in the associated sequence
+  double timestamp = 0;          ///< rgb timestamp [s]
+  double depth_timestamp = 0;    ///< associated depth timestamp [s]
+  cv::Mat rgb;                   ///< CV_8UC3, BGR (as cv::imread)
+  cv::Mat depth;                 ///< CV_16UC1 raw units (camera.depth_scale per metre), 0 = invalid
+};
+
+/// Built-in intrinsics (640 x 480, depth_scale 5000), from the TUM RGB-D "file formats / camera
+/// calibration" page and the Bonn RGB-D Dynamic dataset:
+/// "tum1" (freiburg1, with distortion), "tum2" (freiburg2, with distortion), "tum3" (freiburg3,
+/// no distortion), "tum_ros" (ROS default 525, 525, 319.5, 239.5), "bonn" (Asus Xtion).
+/// @throws ds3d::InvalidArgument for any other name (the message lists the valid ones).
+[[nodiscard]] PinholeCamera camera_preset(std::string_view name);
+
+/// Parses camera.txt content: one `key value` per line, '#' comments; keys fx fy cx cy (required),
+/// k1 k2 p1 p2 k3 (default 0), depth_scale (default 5000), width height (default 640 480).
+/// @param source name used in error messages
+/// @throws ds3d::IoError naming source and line for an unknown or repeated key, a value that is
+///         not a number, a missing required key or an invalid camera.
+[[nodiscard]] PinholeCamera parse_camera_text(std::string_view text,
+                                              std::string_view source = "<text>");
+
+/// Reads a camera.txt file (see parse_camera_text()). @throws ds3d::IoError.
+[[nodiscard]] PinholeCamera read_camera_file(const std::filesystem::path& path);
+
+/// Options of RgbdDataset::open().
+struct DatasetOptions {
+  double max_difference = 0.02;  ///< rgb-depth association window [s], >= 0 (associate.py)
+  double offset = 0.0;           ///< added to depth stamps [s]
+  std::optional<PinholeCamera> camera = std::nullopt;  ///< overrides camera.txt and the default
+};
+
+/// One associated rgb/depth pair (file names relative to the dataset folder).
+struct RgbdEntry {
+  double timestamp = 0;        ///< rgb stamp [s]
+  std::string rgb_file;        ///< as listed in rgb.txt
+  double depth_timestamp = 0;  ///< depth stamp [s]
+  std::string depth_file;      ///< as listed in depth.txt
+};
+
+/// A TUM-layout RGB-D sequence. Opening reads only the lists; frame() loads images on demand.
+/// @note const member functions are safe to call concurrently (frame() only reads files).
+class RgbdDataset {
+ public:
+  /// Opens a folder: reads rgb.txt and depth.txt and associates them.
+  /// @param dir folder in TUM layout
+  /// @param options association window/offset and camera override
+  /// @throws ds3d::IoError for a missing folder or list, a timestamp that is not a number, or a
+  ///         bad camera.txt; ds3d::InvalidArgument for bad options.
+  /// @note O(n log n) in the list lengths; no image is read.
+  static RgbdDataset open(const std::filesystem::path& dir, const DatasetOptions& options = {});
+
+  /// Number of associated rgb/depth pairs.
+  [[nodiscard]] std::size_t size() const;
+
+  /// Loads frame i (rgb as BGR CV_8UC3, depth as raw CV_16UC1).
+  /// @throws ds3d::InvalidArgument for i >= size(); ds3d::IoError for an unreadable image, a
+  ///         depth image that is not 16-bit single-channel, or rgb/depth of different sizes.
+  [[nodiscard]] RgbdFrame frame(std::size_t i) const;
+
+  /// options.camera, else camera.txt in the folder, else camera_preset("tum_ros").
+  [[nodiscard]] const PinholeCamera& camera() const;
+
+  /// The folder given to open().
+  [[nodiscard]] const std::filesystem::path& directory() const;
+
+  /// `groundtruth.txt` in the folder, when it exists.
+  [[nodiscard]] std::optional<std::filesystem::path> groundtruth_path() const;
+
+  /// The associated pairs, sorted by rgb stamp.
+  [[nodiscard]] const std::vector<RgbdEntry>& entries() const;
+
+ private:
+  RgbdDataset() = default;
+  std::filesystem::path dir_;
+  PinholeCamera camera_;
+  std::vector<RgbdEntry> entries_;
+};
+
+}  // namespace ds3d
