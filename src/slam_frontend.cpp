@@ -241,6 +241,7 @@ struct SlamFrontend::Impl {
     Observation o;
     o.pixel = f.uv[i].cast<double>();
     o.u_right = f.u_right(i, k.bf);
+    o.has_depth = f.depth[i] > 0;
     o.inv_sigma2 = inv_sigma2[static_cast<std::size_t>(f.octave[i])];
     return o;
   }
@@ -473,11 +474,12 @@ struct SlamFrontend::Impl {
     const Eigen::Isometry3d pred = velocity * last_T_cw;
     T_cw = pred;
     std::fill(f.points.begin(), f.points.end(), -1);
-    int n = search_by_projection(f, T_cw, cand, 7.0, false, frame_counter);
+    // ORB-SLAM2 uses a 15-pixel window for monocular and RGB-D input.
+    int n = search_by_projection(f, T_cw, cand, 15.0, false, frame_counter);
     if (n < 20) {
       std::fill(f.points.begin(), f.points.end(), -1);
       for (const int pid : cand) points[static_cast<std::size_t>(pid)].last_frame_seen = std::numeric_limits<std::size_t>::max();
-      n = search_by_projection(f, T_cw, cand, 14.0, false, frame_counter);
+      n = search_by_projection(f, T_cw, cand, 30.0, false, frame_counter);
     }
     if (n < 20) return false;
     return optimize_frame(f, T_cw) >= 10;
@@ -564,7 +566,8 @@ struct SlamFrontend::Impl {
         cand.push_back(pid);
       }
     }
-    search_by_projection(f, T_cw, cand, just_relocalized ? 3.0 : 1.0, true, stamp);
+    // ORB-SLAM2's RGB-D search radius factor: 3, or 5 right after relocalisation.
+    search_by_projection(f, T_cw, cand, just_relocalized ? 5.0 : 3.0, true, stamp);
     const int inliers = optimize_frame(f, T_cw);
     for (const int pid : f.points) {
       if (pid >= 0) ++points[static_cast<std::size_t>(pid)].found;
@@ -962,6 +965,30 @@ TrackResult SlamFrontend::track(const cv::Mat& rgb, const cv::Mat& depth, double
   detect_dynamic(pf);
   filter_dynamic(pf);
   return track_prepared(std::move(pf));
+}
+
+TrackResult SlamFrontend::track(const RgbdFrame& frame) {
+  FrameInput in;
+  in.index = frame.index;
+  in.timestamp = frame.timestamp;
+  in.rgb = frame.rgb;
+  in.depth = frame.depth;
+  PreparedFrame pf = extract(std::move(in));
+  detect_dynamic(pf);
+  filter_dynamic(pf);
+  return track_prepared(std::move(pf));
+}
+
+Trajectory to_trajectory(const std::vector<FramePose>& poses) {
+  Trajectory out;
+  out.reserve(poses.size());
+  for (const auto& p : poses) {
+    TimedPose t;
+    t.timestamp = p.timestamp;
+    t.T_world_cam = p.T_world_cam;
+    out.push_back(t);
+  }
+  return out;
 }
 
 void SlamFrontend::finish() { impl_->apply_ba_if_due(true); }

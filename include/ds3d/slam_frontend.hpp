@@ -41,7 +41,9 @@
 #include "ds3d/bundle_adjustment.hpp"
 #include "ds3d/camera.hpp"
 #include "ds3d/cloud.hpp"
+#include "ds3d/dataset.hpp"
 #include "ds3d/orb_features.hpp"
+#include "ds3d/trajectory.hpp"
 
 namespace ds3d::slam {
 
@@ -205,6 +207,8 @@ class SlamFrontend {
   /// @throws ds3d::InvalidArgument on bad images or a timestamp earlier than the previous one.
   /// @note Never throws for lost tracking, black images or missing depth: see TrackResult::state.
   TrackResult track(const cv::Mat& rgb, const cv::Mat& depth, double timestamp);
+  /// Same for a frame read by RgbdDataset (its index and timestamp are kept).
+  TrackResult track(const RgbdFrame& frame);
 
   /// Stage 1 (thread-safe, const): validates the frame and extracts features.
   [[nodiscard]] PreparedFrame extract(FrameInput frame) const;
@@ -243,6 +247,10 @@ class SlamFrontend {
   std::unique_ptr<Impl> impl_;
 };
 
+/// Drops the `tracked` flags: the poses as a ds3d::Trajectory (for write_tum_trajectory and
+/// evaluate_ate).
+[[nodiscard]] Trajectory to_trajectory(const std::vector<FramePose>& poses);
+
 /// Options of run_pipeline.
 struct PipelineOptions {
   bool threaded = true;        ///< stages in their own threads (false: all on the caller's)
@@ -264,5 +272,14 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
                                       const std::function<std::optional<FrameInput>()>& next,
                                       const std::function<void(const TrackResult&)>& on_result = {},
                                       const PipelineOptions& options = {});
+
+/// run_pipeline over the first `max_frames` frames of a dataset (images are read on the
+/// pipeline's reader thread).
+/// @param max_frames 0 = all frames
+/// @throws ds3d::IoError for unreadable images; what run_pipeline throws.
+std::vector<TrackResult> run_dataset(SlamFrontend& slam, const RgbdDataset& dataset,
+                                     std::size_t max_frames = 0,
+                                     const std::function<void(const TrackResult&)>& on_result = {},
+                                     const PipelineOptions& options = {});
 
 }  // namespace ds3d::slam
