@@ -724,11 +724,19 @@ struct SlamFrontend::Impl {
     std::vector<std::pair<int, int>> fixed_sorted(others.begin(), others.end());
     std::stable_sort(fixed_sorted.begin(), fixed_sorted.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
     if (static_cast<int>(fixed_sorted.size()) > cfg.max_fixed_keyframes) fixed_sorted.resize(static_cast<std::size_t>(cfg.max_fixed_keyframes));
+    std::vector<int> fixed_ids;
+    for (const auto& [id, c] : fixed_sorted) fixed_ids.push_back(id);
+    launch_ba(local, fixed_ids, pts, cfg.mapping_thread, cfg.local_ba);
+  }
 
+  // Starts a BA over `local` (optimised) and `fixed_ids` (constant) keyframes and `pts`, on the
+  // mapping thread or deferred; its result is applied ba_apply_lag frames later (or by finish()).
+  void launch_ba(const std::vector<int>& local, const std::vector<int>& fixed_ids,
+                 const std::vector<int>& pts, bool async, const LocalBaParams& params) {
     BaJob job;
     job.kf_ids = local;
     std::vector<std::uint8_t> fixed(local.size(), 0);
-    for (const auto& [id, c] : fixed_sorted) {
+    for (const int id : fixed_ids) {
       job.kf_ids.push_back(id);
       fixed.push_back(1);
     }
@@ -762,12 +770,12 @@ struct SlamFrontend::Impl {
     job.point_ids = pts;
     job.due_frame = frame_counter + static_cast<std::size_t>(cfg.ba_apply_lag);
     auto work = [k = k, poses = std::move(poses), fixed = std::move(fixed), pos = std::move(pos),
-                 obs = job.observations, params = cfg.local_ba]() {
+                 obs = job.observations, params]() {
       const auto t0 = Clock::now();
       auto r = local_bundle_adjustment(k, poses, fixed, pos, obs, params);
       return std::make_pair(std::move(r), ms_since(t0));
     };
-    if (cfg.mapping_thread) {
+    if (async) {
       job.result = std::async(std::launch::async, std::move(work));
     } else {
       job.result = std::async(std::launch::deferred, std::move(work));
@@ -991,7 +999,23 @@ Trajectory to_trajectory(const std::vector<FramePose>& poses) {
   return out;
 }
 
-void SlamFrontend::finish() { impl_->apply_ba_if_due(true); }
+void SlamFrontend::finish() {
+  impl_->apply_ba_if_due(true);
+  if (impl_->cfg.final_global_ba && impl_->keyframes.size() >= 2) {
+    // Global BA over every keyframe and point, first keyframe fixed (the world frame).
+    std::vector<int> local;
+    for (std::size_t i = 1; i < impl_->keyframes.size(); ++i) local.push_back(static_cast<int>(i));
+    std::vector<int> pts;
+    for (std::size_t j = 0; j < impl_->points.size(); ++j) {
+      if (!impl_->points[j].bad) pts.push_back(static_cast<int>(j));
+    }
+    LocalBaParams params = impl_->cfg.local_ba;
+    params.iterations_first = std::max(params.iterations_first, 10);
+    params.iterations_second = std::max(params.iterations_second, 10);
+    impl_->launch_ba(local, {0}, pts, false, params);
+    impl_->apply_ba_if_due(true);
+  }
+}
 
 std::vector<FramePose> SlamFrontend::trajectory() const {
   std::vector<FramePose> out;

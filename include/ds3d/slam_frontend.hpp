@@ -119,6 +119,7 @@ struct FrontendConfig {
   int max_fixed_keyframes = 20;   ///< other observing keyframes held fixed in local BA, >= 1
   bool enable_local_ba = true;    ///< run local BA on every new keyframe
   bool mapping_thread = true;     ///< run local BA in its own thread (results are identical)
+  bool final_global_ba = true;    ///< finish() runs a BA over all keyframes and points (first fixed)
   int ba_apply_lag = 3;           ///< frames after a keyframe at which its BA result is applied, >= 0
   int relocalisation_candidates = 30;  ///< most recent keyframes tried when lost, >= 1
   int reanchor_after_lost = 10;   ///< consecutive lost frames after which a new map segment starts
@@ -220,7 +221,9 @@ class SlamFrontend {
   /// @throws ds3d::InvalidArgument when the timestamp is earlier than the previous frame's.
   TrackResult track_prepared(PreparedFrame frame);
 
-  /// Waits for the mapping thread and applies any pending local BA. Call after the last frame.
+  /// Waits for the mapping thread and applies any pending local BA, then (if
+  /// config.final_global_ba) a global BA over all keyframes. Call after the last frame; trajectory()
+  /// reflects it. @note O(keyframes · points) for the global BA (about a second for 400 frames).
   void finish();
 
   /// One pose per tracked-or-not input frame, in input order. Each frame's pose is stored relative
