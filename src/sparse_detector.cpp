@@ -240,6 +240,109 @@ void DetectorConfig::validate() const {
   check(fps_padding_norm2 >= 0.0F, "fps_padding_norm2", fps_padding_norm2);
 }
 
+std::string DetectorConfig::to_json() const {
+  auto ints = [](const std::vector<int>& v) {
+    std::string s = "[";
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i) s += ',';
+      s += std::to_string(v[i]);
+    }
+    s += ']';
+    return s;
+  };
+  std::string names = "[";
+  for (std::size_t i = 0; i < class_names.size(); ++i) {
+    if (i) names += ',';
+    names += '"';
+    names += detail::json_escape(class_names[i]);
+    names += '"';
+  }
+  names += "]";
+  auto num = [](float v) { return detail::json_number(static_cast<double>(v)); };
+  return "{\"profile\":\"" + detail::json_escape(profile) + "\",\"num_centres\":" + std::to_string(num_centres) +
+         ",\"sa_radius\":" + num(sa_radius) + ",\"sa_samples\":" + std::to_string(sa_samples) +
+         ",\"sa_mlp\":" + ints(sa_mlp) + ",\"d_model\":" + std::to_string(d_model) +
+         ",\"num_heads\":" + std::to_string(num_heads) + ",\"enc_layers\":" + std::to_string(enc_layers) +
+         ",\"enc_ffn\":" + std::to_string(enc_ffn) + ",\"dec_layers\":" + std::to_string(dec_layers) +
+         ",\"dec_ffn\":" + std::to_string(dec_ffn) + ",\"num_queries\":" + std::to_string(num_queries) +
+         ",\"num_classes\":" + std::to_string(num_classes) + ",\"class_names\":" + names +
+         ",\"num_angle_bins\":" + std::to_string(num_angle_bins) + ",\"head_hidden\":" + std::to_string(head_hidden) +
+         ",\"part_hidden\":" + std::to_string(part_hidden) + ",\"layer_norm_eps\":" + num(layer_norm_eps) +
+         ",\"min_points_in_box\":" + std::to_string(min_points_in_box) + ",\"nms_iou\":" + num(nms_iou) +
+         ",\"score_threshold\":" + num(score_threshold) + ",\"min_size_extent\":" + num(min_size_extent) +
+         ",\"fps_padding_norm2\":" + num(fps_padding_norm2) +
+         ",\"bn_folded\":true,\"in_proj\":\"packed_qkv\",\"format_version\":1}";
+}
+
+DetectorConfig DetectorConfig::make_profile(std::string_view name) {
+  DS3D_CHECK(name == "fast" || name == "quality",
+             "ds3d::DetectorConfig::make_profile: name must be 'fast' or 'quality' (got '", name, "')");
+  DetectorConfig c;
+  c.profile = std::string(name);
+  c.num_centres = name == "fast" ? 384 : 512;
+  c.sa_mlp = {32, 64, 128};
+  c.class_names = {"person"};
+  return c;
+}
+
+std::vector<std::pair<std::string, std::vector<std::int64_t>>> SparseDetector::expected_tensors(
+    const DetectorConfig& c) {
+  std::vector<std::pair<std::string, std::vector<std::int64_t>>> t;
+  auto lin = [&](const std::string& n, std::int64_t out, std::int64_t in) {
+    t.push_back({n + ".weight", {out, in}});
+    t.push_back({n + ".bias", {out}});
+  };
+  const std::int64_t d = c.d_model;
+  auto norm = [&](const std::string& n) {
+    t.push_back({n + ".weight", {d}});
+    t.push_back({n + ".bias", {d}});
+  };
+  auto attn = [&](const std::string& n) {
+    t.push_back({n + ".in_proj_weight", {3 * d, d}});
+    t.push_back({n + ".in_proj_bias", {3 * d}});
+    lin(n + ".out_proj", d, d);
+  };
+  std::int64_t prev = 3;
+  for (std::size_t i = 0; i < c.sa_mlp.size(); ++i) {
+    lin("pre_encoder.mlp." + std::to_string(i), c.sa_mlp[i], prev);
+    prev = c.sa_mlp[i];
+  }
+  for (int i = 0; i < c.enc_layers; ++i) {
+    const std::string p = "encoder.layers." + std::to_string(i);
+    attn(p + ".self_attn");
+    lin(p + ".linear1", c.enc_ffn, d);
+    lin(p + ".linear2", d, c.enc_ffn);
+    norm(p + ".norm1");
+    norm(p + ".norm2");
+  }
+  lin("encoder_to_decoder_projection.0", d, d);
+  lin("encoder_to_decoder_projection.1", d, d);
+  t.push_back({"pos_embedding.gauss_B", {3, d / 2}});
+  lin("query_projection.0", d, d);
+  lin("query_projection.1", d, d);
+  for (int i = 0; i < c.dec_layers; ++i) {
+    const std::string p = "decoder.layers." + std::to_string(i);
+    attn(p + ".self_attn");
+    attn(p + ".multihead_attn");
+    lin(p + ".linear1", c.dec_ffn, d);
+    lin(p + ".linear2", d, c.dec_ffn);
+    norm(p + ".norm1");
+    norm(p + ".norm2");
+    norm(p + ".norm3");
+  }
+  norm("decoder.norm");
+  const std::int64_t outs[5] = {c.num_classes + 1, 3, 3, c.num_angle_bins, c.num_angle_bins};
+  for (int k = 0; k < 5; ++k) {
+    const std::string p = std::string("mlp_heads.") + kHeadNames[k];
+    lin(p + ".0", c.head_hidden, d);
+    lin(p + ".1", c.head_hidden, c.head_hidden);
+    lin(p + ".2", outs[k], c.head_hidden);
+  }
+  lin("part_head.0", c.part_hidden, d + 3);
+  lin("part_head.1", 4, c.part_hidden);
+  return t;
+}
+
 SparseDetector SparseDetector::load(const std::filesystem::path& weights) {
   return from_weights(WeightsFile::read(weights));
 }
