@@ -103,32 +103,34 @@ Mat attention(const Mat& q_in, const Mat& k_in, const Mat& v_in, const Attention
 float sigmoid(float x) { return 1.0F / (1.0F + std::exp(-x)); }
 
 // FPS of k indices over rows of p (spec §3.2); float32 expressions identical to ops.py.
+// Non-candidates (padding) carry distance -1 forever: min(-1, d2) = -1 never beats best_d = -1.
 std::vector<std::int32_t> farthest_point_sample(const Mat& p, Eigen::Index k, float padding_norm2) {
   const Eigen::Index n = p.rows();
   std::vector<std::int32_t> out(static_cast<std::size_t>(k), 0);
   if (n == 0 || k == 0) return out;
-  std::vector<float> dist(static_cast<std::size_t>(n), 1e10F);
-  std::vector<char> candidate(static_cast<std::size_t>(n));
+  const Eigen::ArrayXf x = p.col(0), y = p.col(1), z = p.col(2);  // structure of arrays
+  Eigen::ArrayXf dist(n);
   for (Eigen::Index j = 0; j < n; ++j) {
-    const float x = p(j, 0), y = p(j, 1), z = p(j, 2);
-    const float xx = x * x, yy = y * y, zz = z * z;
-    candidate[static_cast<std::size_t>(j)] = static_cast<char>((xx + yy) + zz > padding_norm2);
+    const float xx = x[j] * x[j], yy = y[j] * y[j], zz = z[j] * z[j];
+    dist[j] = (xx + yy) + zz > padding_norm2 ? 1e10F : -1.0F;
   }
   Eigen::Index last = 0;
+  const float* px = x.data();
+  const float* py = y.data();
+  const float* pz = z.data();
+  float* pd = dist.data();
   for (Eigen::Index i = 1; i < k; ++i) {
-    const float lx = p(last, 0), ly = p(last, 1), lz = p(last, 2);
+    const float lx = px[last], ly = py[last], lz = pz[last];
     float best_d = -1.0F;
-    Eigen::Index best = 0;
-    for (Eigen::Index j = 0; j < n; ++j) {
-      const float dx = p(j, 0) - lx, dy = p(j, 1) - ly, dz = p(j, 2) - lz;
+    for (Eigen::Index j = 0; j < n; ++j) {  // vectorisable: no branch
+      const float dx = px[j] - lx, dy = py[j] - ly, dz = pz[j] - lz;
       const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
-      const float d2 = (xx + yy) + zz;
-      float& dj = dist[static_cast<std::size_t>(j)];
-      dj = std::min(dj, d2);
-      if (candidate[static_cast<std::size_t>(j)] && dj > best_d) {
-        best_d = dj;
-        best = j;
-      }
+      pd[j] = std::min(pd[j], (xx + yy) + zz);
+      best_d = std::max(best_d, pd[j]);
+    }
+    Eigen::Index best = 0;
+    if (best_d >= 0.0F) {
+      while (pd[best] != best_d) ++best;  // lowest index holding the maximum
     }
     last = best;
     out[static_cast<std::size_t>(i)] = static_cast<std::int32_t>(best);
@@ -458,27 +460,32 @@ DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectO
   const Eigen::Index s = c.sa_samples;
   const float r = c.sa_radius;
   const float r2 = r * r;
-  Mat grouped(t * s, 3);  // [t * s, 3] offsets / r
+  // Ball query "first s by index". Empty slots repeat the first index in the reference; a
+  // repeated row cannot change a max-pool, so only the distinct samples are pushed through the MLP.
+  std::vector<Eigen::Index> group_begin(static_cast<std::size_t>(t) + 1, 0);
+  Mat grouped(t * s, 3);  // [<= t * s, 3] offsets / r
+  Eigen::Index rows = 0;
   for (Eigen::Index i = 0; i < t; ++i) {
     const float cx = centres(i, 0), cy = centres(i, 1), cz = centres(i, 2);
     Eigen::Index found = 0;
-    Eigen::Index first = 0;
     for (Eigen::Index j = 0; j < n && found < s; ++j) {
       const float dx = cx - p(j, 0), dy = cy - p(j, 1), dz = cz - p(j, 2);
       const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
       if ((xx + yy) + zz < r2) {
-        if (found == 0) first = j;
-        grouped.row(i * s + found) = (p.row(j) - centres.row(i)) / r;
+        grouped.row(rows++) = (p.row(j) - centres.row(i)) / r;
         ++found;
       }
     }
-    for (Eigen::Index k = found; k < s; ++k) grouped.row(i * s + k) = (p.row(first) - centres.row(i)) / r;
+    group_begin[static_cast<std::size_t>(i) + 1] = rows;
   }
-  Mat x = grouped;
-  for (const auto& l : w.sa_mlp) x = linear_relu(x, l);  // [t * s, d]
+  Mat x = grouped.topRows(rows);
+  for (const auto& l : w.sa_mlp) x = linear_relu(x, l);  // [rows, d]
   const Eigen::Index d = c.d_model;
   Mat feats(t, d);  // [t, d]
-  for (Eigen::Index i = 0; i < t; ++i) feats.row(i) = x.middleRows(i * s, s).colwise().maxCoeff();
+  for (Eigen::Index i = 0; i < t; ++i) {
+    const Eigen::Index b = group_begin[static_cast<std::size_t>(i)];
+    feats.row(i) = x.middleRows(b, group_begin[static_cast<std::size_t>(i) + 1] - b).colwise().maxCoeff();
+  }
 
   // ---- encoder ----------------------------------------------------------------------------
   Mat enc = feats;
