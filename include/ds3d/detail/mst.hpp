@@ -454,9 +454,9 @@ class BoruvkaKdTree {
     }
   }
 
-  // Lower bound of the Euclidean distance from q to node k's box (monotone rounding makes it a
-  // true lower bound of the computed point distances).
-  [[nodiscard]] double box_dist(const double* q, std::size_t k) const {
+  // Squared distance from q to node k's box: a lower bound of every computed sq_dist_seq to its
+  // points, because each rounding step is monotone.
+  [[nodiscard]] double box_dist2(const double* q, std::size_t k) const {
     const double* lo = lo_.data() + k * dim_;
     const double* hi = hi_.data() + k * dim_;
     double s = 0.0;
@@ -466,7 +466,7 @@ class BoruvkaKdTree {
       const double d = a > 0.0 ? a : (b > 0.0 ? b : 0.0);
       s += no_contract(d * d);
     }
-    return std::sqrt(s);
+    return s;
   }
 
   // Improves point qi's candidate edge given `comp_bound`, the best edge weight known for its
@@ -482,24 +482,36 @@ class BoruvkaKdTree {
     double bound = bound0;
     std::uint32_t best_t = cand_t_[qi];
     bool improved = false;
-    std::pair<std::int32_t, double> stack[128];
+    // Squared-space pruning without sqrt: any d² above hi2 = bound²·(1 + 1e-14) has
+    // sqrt(d²) > bound even after rounding, so it cannot give a better edge; values at or
+    // below hi2 are decided exactly with sqrt.
+    auto hi2_of = [](double b) { return b * b * (1.0 + 1e-14); };
+    double hi2 = hi2_of(bound);
+    struct Entry {
+      std::int32_t node;
+      double lbc;   // max{κ(q), min κ in node}
+      double box2;  // squared distance from q to the node's box (lower bound of d²)
+    };
+    Entry stack[128];
     int top = 0;
-    stack[top++] = {0, std::max(cqore, nodes_[0].min_core)};
+    stack[top++] = {0, std::max(cqore, nodes_[0].min_core), 0.0};
     while (top > 0) {
-      const auto [k, lb] = stack[--top];
-      if (lb >= bound) continue;
-      const Node& nd = nodes_[static_cast<std::size_t>(k)];
+      const Entry en = stack[--top];
+      if (en.lbc >= bound || en.box2 > hi2) continue;
+      const Node& nd = nodes_[static_cast<std::size_t>(en.node)];
       if (nd.comp == cq) continue;
       if (nd.left < 0) {
         for (auto i = nd.begin; i < nd.end; ++i) {
           if (comp_[i] == cq) continue;
           const double lo = cqore > core_[i] ? cqore : core_[i];
           if (lo >= bound) continue;
-          const double d =
-              std::sqrt(sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_));
+          const double d2 = sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_);
+          if (d2 > hi2) continue;
+          const double d = std::sqrt(d2);
           const double mr = d > lo ? d : lo;
           if (mr < bound) {
             bound = mr;
+            hi2 = hi2_of(bound);
             best_t = i;
             improved = true;
           }
@@ -508,15 +520,17 @@ class BoruvkaKdTree {
       }
       const auto l = static_cast<std::size_t>(nd.left);
       const auto r = static_cast<std::size_t>(nd.right);
-      const double lbl = std::max({cqore, nodes_[l].min_core, box_dist(q, l)});
-      const double lbr = std::max({cqore, nodes_[r].min_core, box_dist(q, r)});
+      const Entry el{nd.left, std::max(cqore, nodes_[l].min_core), box_dist2(q, l)};
+      const Entry er{nd.right, std::max(cqore, nodes_[r].min_core), box_dist2(q, r)};
+      const bool keep_l = el.lbc < bound && el.box2 <= hi2;
+      const bool keep_r = er.lbc < bound && er.box2 <= hi2;
       // Push the farther child first so the nearer one is searched first.
-      if (lbl <= lbr) {
-        if (lbr < bound) stack[top++] = {nd.right, lbr};
-        if (lbl < bound) stack[top++] = {nd.left, lbl};
+      if (el.box2 <= er.box2) {
+        if (keep_r) stack[top++] = er;
+        if (keep_l) stack[top++] = el;
       } else {
-        if (lbl < bound) stack[top++] = {nd.left, lbl};
-        if (lbr < bound) stack[top++] = {nd.right, lbr};
+        if (keep_l) stack[top++] = el;
+        if (keep_r) stack[top++] = er;
       }
     }
     if (improved) {
