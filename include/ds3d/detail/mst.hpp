@@ -352,6 +352,7 @@ class BoruvkaKdTree {
     std::vector<std::uint32_t> pos(n);
     for (std::size_t i = 0; i < n; ++i) pos[perm_[i]] = static_cast<std::uint32_t>(i);
     cand_w_.assign(n, std::numeric_limits<double>::infinity());
+    lower_ = core_;
     cand_t_.assign(n, 0U);
     if (k1 > 0) {
       for (std::size_t i = 0; i < n; ++i) {
@@ -564,6 +565,9 @@ class BoruvkaKdTree {
     const double cqore = core_[qi];
     const double own = cand_w_[qi];
     if (own == cqore) return;  // κ(q) is a lower bound of every edge of q: optimal already
+    // lower_[qi] bounds q's cheapest edge to another component from below; it stays valid
+    // across rounds because merging only removes candidates.
+    if (lower_[qi] >= comp_bound) return;
     const double bound0 = std::min(own, comp_bound);
     if (cqore >= bound0) return;  // cannot beat the component's best edge
     const double* q = pts_.data() + qi * dim_;
@@ -625,6 +629,9 @@ class BoruvkaKdTree {
       cand_w_[qi] = bound;
       cand_t_[qi] = best_t;
       comp_bound = std::min(comp_bound, bound);
+      lower_[qi] = bound;  // exact: nothing cheaper exists
+    } else {
+      lower_[qi] = std::max(lower_[qi], bound0);  // the search proved nothing below bound0
     }
   }
 
@@ -637,6 +644,7 @@ class BoruvkaKdTree {
   std::vector<double> lo_, hi_;
   std::vector<std::uint32_t> uf_parent_;
   std::vector<double> cand_w_;         // per tree position: best known edge weight
+  std::vector<double> lower_;          // ... and a lower bound of the best edge weight
   std::vector<std::uint32_t> cand_t_;  // ... and its target (tree position)
   const std::uint32_t* comp_ = nullptr;
 };
