@@ -20,7 +20,7 @@ namespace ds3d::detail {
 
 /// Prevents the compiler from contracting `acc + p` into an FMA with the product that made `p`.
 /// Only needed when the target has FMA (otherwise no contraction is possible); the empty asm makes
-/// `p` opaque at zero cost. Clang also honours the `fp contract(off)` pragma in the callers.
+/// `p` opaque at zero cost (GCC and Clang, x86-64 and AArch64).
 inline double no_contract(double p) {
 #if defined(__FMA__) && defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
   asm("" : "+x"(p));

@@ -17,6 +17,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 #include "ds3d/detail/kdtree_nd.hpp"
 #include "ds3d/detail/parallel.hpp"
@@ -140,6 +143,82 @@ inline std::size_t prim_step_3d_sse2(PrimSoA& s, const double* c, double cc2, do
 }
 #endif
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#define DS3D_HDBSCAN_AVX2 1
+// The same step with 4-wide AVX2, compiled for that target only and chosen at run time (no FMA
+// is enabled for this function, so products and sums stay separate roundings).
+__attribute__((target("avx2"))) inline std::size_t prim_step_3d_avx2(PrimSoA& s, const double* c,
+                                                                     double cc2, double cur) {
+  const double* x = s.coords[0].data();
+  const double* y = s.coords[1].data();
+  const double* z = s.coords[2].data();
+  double* key = s.key2.data();
+  double* from = s.from.data();
+  const double* core2 = s.core2.data();
+  const __m256d cx = _mm256_set1_pd(c[0]), cy = _mm256_set1_pd(c[1]), cz = _mm256_set1_pd(c[2]);
+  const __m256d vcc = _mm256_set1_pd(cc2), vcur = _mm256_set1_pd(cur);
+  __m256d vbest = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  __m256d vbest_t = _mm256_set1_pd(-1.0);
+  __m256d vt = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
+  const __m256d four = _mm256_set1_pd(4.0);
+  std::size_t t = 0;
+  for (; t + 4 <= s.m; t += 4) {
+    const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(x + t), cx);
+    const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(y + t), cy);
+    const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(z + t), cz);
+    __m256d d2 = _mm256_mul_pd(dx, dx);
+    d2 = _mm256_add_pd(d2, _mm256_mul_pd(dy, dy));
+    d2 = _mm256_add_pd(d2, _mm256_mul_pd(dz, dz));
+    const __m256d lo = _mm256_max_pd(_mm256_loadu_pd(core2 + t), vcc);
+    const __m256d m2 = _mm256_max_pd(lo, d2);
+    const __m256d k = _mm256_loadu_pd(key + t);
+    const __m256d better = _mm256_cmp_pd(m2, k, _CMP_LT_OQ);
+    const __m256d nk = _mm256_blendv_pd(k, m2, better);
+    _mm256_storeu_pd(key + t, nk);
+    _mm256_storeu_pd(from + t, _mm256_blendv_pd(_mm256_loadu_pd(from + t), vcur, better));
+    const __m256d lt = _mm256_cmp_pd(nk, vbest, _CMP_LT_OQ);  // strict: first index per lane
+    vbest = _mm256_blendv_pd(vbest, nk, lt);
+    vbest_t = _mm256_blendv_pd(vbest_t, vt, lt);
+    vt = _mm256_add_pd(vt, four);
+  }
+  alignas(32) double bv[4], bt[4];
+  _mm256_store_pd(bv, vbest);
+  _mm256_store_pd(bt, vbest_t);
+  double best = std::numeric_limits<double>::infinity();
+  double best_t = -1.0;
+  for (int l = 0; l < 4; ++l) {
+    if (bt[l] < 0.0) continue;
+    if (bv[l] < best || (bv[l] == best && bt[l] < best_t)) {
+      best = bv[l];
+      best_t = bt[l];
+    }
+  }
+  for (; t < s.m; ++t) {  // tail
+    double d2 = 0.0;
+    for (std::size_t j = 0; j < 3; ++j) {
+      const double diff = s.coords[j][t] - c[j];
+      d2 += no_contract(diff * diff);
+    }
+    const double lo = cc2 > core2[t] ? cc2 : core2[t];
+    const double m2 = d2 > lo ? d2 : lo;
+    if (m2 < key[t]) {
+      key[t] = m2;
+      from[t] = cur;
+    }
+    if (key[t] < best) {
+      best = key[t];
+      best_t = static_cast<double>(t);
+    }
+  }
+  return best_t < 0.0 ? s.m : static_cast<std::size_t>(best_t);
+}
+
+inline bool cpu_has_avx2() {
+  static const bool has = __builtin_cpu_supports("avx2") != 0;
+  return has;
+}
+#endif
+
 inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::size_t dim,
                                        const std::vector<double>& core) {
   std::vector<MstEdge> edges;
@@ -165,11 +244,20 @@ inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::s
     const double* c = data + static_cast<std::size_t>(cur) * dim;
     const double cc2 = core[cur] * core[cur];
     std::size_t best = s.m;
-#if defined(__SSE2__)
-    if (dim == 3)
+#if defined(DS3D_HDBSCAN_AVX2)
+    if (dim == 3 && cpu_has_avx2()) {
+      best = prim_step_3d_avx2(s, c, cc2, static_cast<double>(cur));
+    } else if (dim == 3) {
       best = prim_step_3d_sse2(s, c, cc2, static_cast<double>(cur));
-    else
+    } else {
       best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
+    }
+#elif defined(__SSE2__)
+    if (dim == 3) {
+      best = prim_step_3d_sse2(s, c, cc2, static_cast<double>(cur));
+    } else {
+      best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
+    }
 #else
     best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
 #endif
@@ -264,6 +352,7 @@ class BoruvkaKdTree {
     std::vector<std::uint32_t> pos(n);
     for (std::size_t i = 0; i < n; ++i) pos[perm_[i]] = static_cast<std::uint32_t>(i);
     cand_w_.assign(n, std::numeric_limits<double>::infinity());
+    lower_ = core_;
     cand_t_.assign(n, 0U);
     if (k1 > 0) {
       for (std::size_t i = 0; i < n; ++i) {
@@ -454,9 +543,9 @@ class BoruvkaKdTree {
     }
   }
 
-  // Lower bound of the Euclidean distance from q to node k's box (monotone rounding makes it a
-  // true lower bound of the computed point distances).
-  [[nodiscard]] double box_dist(const double* q, std::size_t k) const {
+  // Squared distance from q to node k's box: a lower bound of every computed sq_dist_seq to its
+  // points, because each rounding step is monotone.
+  [[nodiscard]] double box_dist2(const double* q, std::size_t k) const {
     const double* lo = lo_.data() + k * dim_;
     const double* hi = hi_.data() + k * dim_;
     double s = 0.0;
@@ -466,7 +555,7 @@ class BoruvkaKdTree {
       const double d = a > 0.0 ? a : (b > 0.0 ? b : 0.0);
       s += no_contract(d * d);
     }
-    return std::sqrt(s);
+    return s;
   }
 
   // Improves point qi's candidate edge given `comp_bound`, the best edge weight known for its
@@ -476,30 +565,45 @@ class BoruvkaKdTree {
     const double cqore = core_[qi];
     const double own = cand_w_[qi];
     if (own == cqore) return;  // κ(q) is a lower bound of every edge of q: optimal already
+    // lower_[qi] bounds q's cheapest edge to another component from below; it stays valid
+    // across rounds because merging only removes candidates.
+    if (lower_[qi] >= comp_bound) return;
     const double bound0 = std::min(own, comp_bound);
     if (cqore >= bound0) return;  // cannot beat the component's best edge
     const double* q = pts_.data() + qi * dim_;
     double bound = bound0;
     std::uint32_t best_t = cand_t_[qi];
     bool improved = false;
-    std::pair<std::int32_t, double> stack[128];
+    // Squared-space pruning without sqrt: any d² above hi2 = bound²·(1 + 1e-14) has
+    // sqrt(d²) > bound even after rounding, so it cannot give a better edge; values at or
+    // below hi2 are decided exactly with sqrt.
+    auto hi2_of = [](double b) { return b * b * (1.0 + 1e-14); };
+    double hi2 = hi2_of(bound);
+    struct Entry {
+      std::int32_t node;
+      double lbc;   // max{κ(q), min κ in node}
+      double box2;  // squared distance from q to the node's box (lower bound of d²)
+    };
+    Entry stack[128];
     int top = 0;
-    stack[top++] = {0, std::max(cqore, nodes_[0].min_core)};
+    stack[top++] = {0, std::max(cqore, nodes_[0].min_core), 0.0};
     while (top > 0) {
-      const auto [k, lb] = stack[--top];
-      if (lb >= bound) continue;
-      const Node& nd = nodes_[static_cast<std::size_t>(k)];
+      const Entry en = stack[--top];
+      if (en.lbc >= bound || en.box2 > hi2) continue;
+      const Node& nd = nodes_[static_cast<std::size_t>(en.node)];
       if (nd.comp == cq) continue;
       if (nd.left < 0) {
         for (auto i = nd.begin; i < nd.end; ++i) {
           if (comp_[i] == cq) continue;
           const double lo = cqore > core_[i] ? cqore : core_[i];
           if (lo >= bound) continue;
-          const double d =
-              std::sqrt(sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_));
+          const double d2 = sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_);
+          if (d2 > hi2) continue;
+          const double d = std::sqrt(d2);
           const double mr = d > lo ? d : lo;
           if (mr < bound) {
             bound = mr;
+            hi2 = hi2_of(bound);
             best_t = i;
             improved = true;
           }
@@ -508,21 +612,26 @@ class BoruvkaKdTree {
       }
       const auto l = static_cast<std::size_t>(nd.left);
       const auto r = static_cast<std::size_t>(nd.right);
-      const double lbl = std::max({cqore, nodes_[l].min_core, box_dist(q, l)});
-      const double lbr = std::max({cqore, nodes_[r].min_core, box_dist(q, r)});
+      const Entry el{nd.left, std::max(cqore, nodes_[l].min_core), box_dist2(q, l)};
+      const Entry er{nd.right, std::max(cqore, nodes_[r].min_core), box_dist2(q, r)};
+      const bool keep_l = el.lbc < bound && el.box2 <= hi2;
+      const bool keep_r = er.lbc < bound && er.box2 <= hi2;
       // Push the farther child first so the nearer one is searched first.
-      if (lbl <= lbr) {
-        if (lbr < bound) stack[top++] = {nd.right, lbr};
-        if (lbl < bound) stack[top++] = {nd.left, lbl};
+      if (el.box2 <= er.box2) {
+        if (keep_r) stack[top++] = er;
+        if (keep_l) stack[top++] = el;
       } else {
-        if (lbl < bound) stack[top++] = {nd.left, lbl};
-        if (lbr < bound) stack[top++] = {nd.right, lbr};
+        if (keep_l) stack[top++] = el;
+        if (keep_r) stack[top++] = er;
       }
     }
     if (improved) {
       cand_w_[qi] = bound;
       cand_t_[qi] = best_t;
       comp_bound = std::min(comp_bound, bound);
+      lower_[qi] = bound;  // exact: nothing cheaper exists
+    } else {
+      lower_[qi] = std::max(lower_[qi], bound0);  // the search proved nothing below bound0
     }
   }
 
@@ -535,6 +644,7 @@ class BoruvkaKdTree {
   std::vector<double> lo_, hi_;
   std::vector<std::uint32_t> uf_parent_;
   std::vector<double> cand_w_;         // per tree position: best known edge weight
+  std::vector<double> lower_;          // ... and a lower bound of the best edge weight
   std::vector<std::uint32_t> cand_t_;  // ... and its target (tree position)
   const std::uint32_t* comp_ = nullptr;
 };
