@@ -11,3 +11,4 @@ from ._ds3d import __version__  # noqa: F401
 from ._ds3d import *  # noqa: F401,F403
 
 __all__ = ["__version__"]
+from . import synth  # noqa: F401,E402
