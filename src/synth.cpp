@@ -838,7 +838,7 @@ namespace {
 void write_png(const std::filesystem::path& p, const cv::Mat& img) {
   std::vector<std::uint8_t> buf;
   // Fast compression: the generator's time goes into rendering, not zlib.
-  DS3D_CHECK_AS(IoError, cv::imencode(".png", img, buf, {cv::IMWRITE_PNG_COMPRESSION, 1}),
+  DS3D_CHECK_AS(IoError, cv::imencode(".png", img, buf, {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY}),
                 "ds3d::synth::generate_sequence: PNG encoding failed for '", p.string(), "'");
   detail::write_file_atomically(
       p, std::string_view(reinterpret_cast<const char*>(buf.data()), buf.size()),
