@@ -18,8 +18,10 @@ ds3d::Trajectory make(std::size_t n, double hz, double noise, std::uint64_t seed
     const double s = static_cast<double>(i) / hz;
     ds3d::TimedPose p;
     p.timestamp = 1e9 + s;
-    p.T_world_cam.linear() = Eigen::AngleAxisd(0.3 * std::sin(s), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    p.T_world_cam.translation() = Eigen::Vector3d(std::sin(s) + g(rng), std::cos(0.7 * s) + g(rng), 0.1 * s);
+    p.T_world_cam.linear() =
+        Eigen::AngleAxisd(0.3 * std::sin(s), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    p.T_world_cam.translation() =
+        Eigen::Vector3d(std::sin(s) + g(rng), std::cos(0.7 * s) + g(rng), 0.1 * s);
     t.push_back(p);
   }
   return t;

@@ -22,8 +22,11 @@ namespace {
 // Perceptually ordered blue -> green -> yellow -> red ramp for v in [0, 1] (BGR).
 cv::Scalar ramp(double v) {
   v = std::clamp(v, 0.0, 1.0);
-  static const double kStops[5][3] = {{0.19, 0.07, 0.23}, {0.13, 0.47, 0.85}, {0.25, 0.80, 0.35},
-                                      {0.98, 0.80, 0.15}, {0.84, 0.15, 0.12}};  // RGB
+  static const double kStops[5][3] = {{0.19, 0.07, 0.23},
+                                      {0.13, 0.47, 0.85},
+                                      {0.25, 0.80, 0.35},
+                                      {0.98, 0.80, 0.15},
+                                      {0.84, 0.15, 0.12}};  // RGB
   const double x = v * 4;
   const int i = std::min(3, static_cast<int>(x));
   const double f = x - i;
@@ -55,8 +58,8 @@ double tick_step(double range, int target) {
 }  // namespace
 
 void AtePlotOptions::validate() const {
-  DS3D_CHECK(width >= 400 && width <= 8000, "ds3d::render_ate_plot: width must be in [400, 8000] (got ",
-             width, ")");
+  DS3D_CHECK(width >= 400 && width <= 8000,
+             "ds3d::render_ate_plot: width must be in [400, 8000] (got ", width, ")");
   DS3D_CHECK(height >= 300 && height <= 8000,
              "ds3d::render_ate_plot: height must be in [300, 8000] (got ", height, ")");
 }
@@ -172,15 +175,17 @@ cv::Mat render_ate_plot(const Trajectory& gt, const AteResult& r, const AtePlotO
     cv::line(img, pt(a.t_gt, a.error), pt(b.t_gt, b.error), ramp(a.error / emax), 2, cv::LINE_AA);
   }
   cv::line(img, pt(t0, r.rmse), pt(t1, r.rmse), {60, 60, 200}, 1, cv::LINE_AA);
-  text(img, "rmse " + fmt("%.4f", r.rmse), pt(t1, r.rmse) + cv::Point(-110, -6), 0.45, {60, 60, 200});
+  text(img, "rmse " + fmt("%.4f", r.rmse), pt(t1, r.rmse) + cv::Point(-110, -6), 0.45,
+       {60, 60, 200});
   return img;
 }
 
-void write_ate_plot(const std::filesystem::path& path, const Trajectory& gt, const AteResult& result,
-                    const AtePlotOptions& options) {
+void write_ate_plot(const std::filesystem::path& path, const Trajectory& gt,
+                    const AteResult& result, const AtePlotOptions& options) {
   const cv::Mat img = render_ate_plot(gt, result, options);
   std::vector<std::uint8_t> buf;
-  DS3D_CHECK_AS(IoError, cv::imencode(".png", img, buf), "ds3d::write_ate_plot: PNG encoding failed");
+  DS3D_CHECK_AS(IoError, cv::imencode(".png", img, buf),
+                "ds3d::write_ate_plot: PNG encoding failed");
   detail::write_file_atomically(
       path, std::string_view(reinterpret_cast<const char*>(buf.data()), buf.size()),
       "ds3d::write_ate_plot");

@@ -16,19 +16,23 @@ using ds3d::synth::Scenario;
 
 void BM_RenderFrame(benchmark::State& state) {
   const auto scenario = static_cast<Scenario>(state.range(0));
-  const ds3d::synth::SyntheticScene scene(
-      {.scenario = scenario, .num_frames = 300, .seed = 1, .num_humans = static_cast<int>(state.range(1))});
+  const ds3d::synth::SyntheticScene scene({.scenario = scenario,
+                                           .num_frames = 300,
+                                           .seed = 1,
+                                           .num_humans = static_cast<int>(state.range(1))});
   std::size_t i = 0;
   for (auto _ : state) {
     auto f = scene.render(i);
     benchmark::DoNotOptimize(f.rgb.data);
     i = (i + 37) % scene.size();
   }
-  state.SetLabel(ds3d::synth::scenario_name(scenario) + ", humans " + std::to_string(state.range(1)));
+  state.SetLabel(ds3d::synth::scenario_name(scenario) + ", humans " +
+                 std::to_string(state.range(1)));
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
 }
 BENCHMARK(BM_RenderFrame)
-    ->ArgsProduct({{static_cast<int>(Scenario::kStaticRoom), static_cast<int>(Scenario::kWalkingXyz),
+    ->ArgsProduct({{static_cast<int>(Scenario::kStaticRoom),
+                    static_cast<int>(Scenario::kWalkingXyz),
                     static_cast<int>(Scenario::kSittingStatic)},
                    {0, 2, 4}})
     ->MeasureProcessCPUTime()
@@ -39,9 +43,15 @@ void BM_EncodePngs(benchmark::State& state) {
   const auto f = scene.render(0);
   std::vector<std::uint8_t> buf;
   for (auto _ : state) {
-    cv::imencode(".png", f.rgb, buf, {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY});
-    cv::imencode(".png", f.depth, buf, {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY});
-    cv::imencode(".png", f.dynamic_mask, buf, {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY});
+    cv::imencode(".png", f.rgb, buf,
+                 {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY,
+                  cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY});
+    cv::imencode(".png", f.depth, buf,
+                 {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY,
+                  cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY});
+    cv::imencode(".png", f.dynamic_mask, buf,
+                 {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY,
+                  cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY});
     benchmark::DoNotOptimize(buf.data());
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));

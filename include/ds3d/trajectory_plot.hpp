@@ -18,10 +18,10 @@ namespace ds3d {
 
 /// Options of render_ate_plot().
 struct AtePlotOptions {
-  int width = 1400;         ///< image width [px], >= 400
-  int height = 640;         ///< image height [px], >= 300
-  std::string title = {};   ///< first line of the header (e.g. the file names)
-  void validate() const;    ///< throws ds3d::InvalidArgument
+  int width = 1400;        ///< image width [px], >= 400
+  int height = 640;        ///< image height [px], >= 300
+  std::string title = {};  ///< first line of the header (e.g. the file names)
+  void validate() const;   ///< throws ds3d::InvalidArgument
 };
 
 /// Draws the ATE plot. The top view is the plane of the two principal axes of the ground-truth

@@ -26,7 +26,8 @@ ds3d::Trajectory from_rows(const Eigen::Ref<const Rows>& a, const char* fn) {
     p.timestamp = a(i, 0);
     p.T_world_cam.translation() = Eigen::Vector3d(a(i, 1), a(i, 2), a(i, 3));
     DS3D_CHECK(a.row(i).allFinite(), fn, ": row ", i, " is not finite");
-    p.T_world_cam.linear() = ds3d::detail::tum_quaternion_to_matrix(a(i, 4), a(i, 5), a(i, 6), a(i, 7));
+    p.T_world_cam.linear() =
+        ds3d::detail::tum_quaternion_to_matrix(a(i, 4), a(i, 5), a(i, 6), a(i, 7));
   }
   return t;
 }
@@ -36,7 +37,8 @@ Rows to_rows(const ds3d::Trajectory& t) {
   for (std::size_t i = 0; i < t.size(); ++i) {
     const Eigen::Quaterniond q(t[i].T_world_cam.linear());
     const Eigen::Vector3d x = t[i].T_world_cam.translation();
-    a.row(static_cast<Eigen::Index>(i)) << t[i].timestamp, x.x(), x.y(), x.z(), q.x(), q.y(), q.z(), q.w();
+    a.row(static_cast<Eigen::Index>(i)) << t[i].timestamp, x.x(), x.y(), x.z(), q.x(), q.y(), q.z(),
+        q.w();
   }
   return a;
 }
@@ -59,7 +61,8 @@ void bind_trajectory(py::module_& m) {
   m.def(
       "read_tum_trajectory",
       [](const std::string& path, bool keep_zero_quaternion) {
-        return to_rows(ds3d::read_tum_file(path, {.keep_zero_quaternion = keep_zero_quaternion}).trajectory);
+        return to_rows(
+            ds3d::read_tum_file(path, {.keep_zero_quaternion = keep_zero_quaternion}).trajectory);
       },
       py::arg("path"), py::arg("keep_zero_quaternion") = false,
       "Reads a TUM trajectory as an (n, 8) array [t tx ty tz qx qy qz qw], sorted, unique stamps.\n"
@@ -72,7 +75,8 @@ void bind_trajectory(py::module_& m) {
       py::arg("path"), py::arg("trajectory"),
       "Writes an (n, 8) array as a TUM file (temporary file + rename).");
 
-  py::class_<ds3d::AteResult>(m, "AteResult", "evaluate_ate() result (include/ds3d/trajectory_metrics.hpp).")
+  py::class_<ds3d::AteResult>(m, "AteResult",
+                              "evaluate_ate() result (include/ds3d/trajectory_metrics.hpp).")
       .def_readonly("compared_pose_pairs", &ds3d::AteResult::compared_pose_pairs)
       .def_readonly("rmse", &ds3d::AteResult::rmse)
       .def_readonly("mean", &ds3d::AteResult::mean)
@@ -83,20 +87,21 @@ void bind_trajectory(py::module_& m) {
       .def_readonly("rotation", &ds3d::AteResult::rotation)
       .def_readonly("translation", &ds3d::AteResult::translation)
       .def_readonly("scale", &ds3d::AteResult::scale_factor)
-      .def_property_readonly("matches",
-                             [](const ds3d::AteResult& r) {
-                               // (k, 9): t_gt t_est gt_xyz est_aligned_xyz... error last
-                               Eigen::Matrix<double, Eigen::Dynamic, 9, Eigen::RowMajor> a(
-                                   static_cast<Eigen::Index>(r.matches.size()), 9);
-                               for (std::size_t i = 0; i < r.matches.size(); ++i) {
-                                 const auto& x = r.matches[i];
-                                 a.row(static_cast<Eigen::Index>(i)) << x.t_gt, x.t_est, x.p_gt.x(),
-                                     x.p_gt.y(), x.p_gt.z(), x.p_est.x(), x.p_est.y(), x.p_est.z(), x.error;
-                               }
-                               return a;
-                             },
-                             "(k, 9) array: t_gt t_est gt_x gt_y gt_z est_x est_y est_z error "
-                             "(estimate aligned)")
+      .def_property_readonly(
+          "matches",
+          [](const ds3d::AteResult& r) {
+            // (k, 9): t_gt t_est gt_xyz est_aligned_xyz... error last
+            Eigen::Matrix<double, Eigen::Dynamic, 9, Eigen::RowMajor> a(
+                static_cast<Eigen::Index>(r.matches.size()), 9);
+            for (std::size_t i = 0; i < r.matches.size(); ++i) {
+              const auto& x = r.matches[i];
+              a.row(static_cast<Eigen::Index>(i)) << x.t_gt, x.t_est, x.p_gt.x(), x.p_gt.y(),
+                  x.p_gt.z(), x.p_est.x(), x.p_est.y(), x.p_est.z(), x.error;
+            }
+            return a;
+          },
+          "(k, 9) array: t_gt t_est gt_x gt_y gt_z est_x est_y est_z error "
+          "(estimate aligned)")
       .def("__repr__", [](const ds3d::AteResult& r) {
         return "AteResult(pairs=" + std::to_string(r.compared_pose_pairs) +
                ", rmse=" + std::to_string(r.rmse) + " m)";
@@ -115,24 +120,26 @@ void bind_trajectory(py::module_& m) {
       py::arg("scale") = 1.0, py::arg("align") = "se3",
       "ATE exactly as the TUM evaluate_ate.py; align: 'se3' (default), 'sim3' or 'none'.");
 
-  py::class_<ds3d::RpeResult>(m, "RpeResult", "evaluate_rpe() result (include/ds3d/trajectory_metrics.hpp).")
+  py::class_<ds3d::RpeResult>(m, "RpeResult",
+                              "evaluate_rpe() result (include/ds3d/trajectory_metrics.hpp).")
       .def_readonly("compared_pose_pairs", &ds3d::RpeResult::compared_pose_pairs)
       .def_readonly("translational", &ds3d::RpeResult::translational, "[m]")
       .def_readonly("rotational", &ds3d::RpeResult::rotational, "[deg]")
       .def_readonly("rotational_rad", &ds3d::RpeResult::rotational_rad, "[rad]")
       .def_readonly("subsampled", &ds3d::RpeResult::subsampled)
-      .def_property_readonly("pairs",
-                             [](const ds3d::RpeResult& r) {
-                               Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor> a(
-                                   static_cast<Eigen::Index>(r.pairs.size()), 6);
-                               for (std::size_t i = 0; i < r.pairs.size(); ++i) {
-                                 const auto& p = r.pairs[i];
-                                 a.row(static_cast<Eigen::Index>(i)) << p.t_est0, p.t_est1, p.t_gt0,
-                                     p.t_gt1, p.trans_error, p.rot_error_rad;
-                               }
-                               return a;
-                             },
-                             "(k, 6) array: t_est0 t_est1 t_gt0 t_gt1 trans_error_m rot_error_rad");
+      .def_property_readonly(
+          "pairs",
+          [](const ds3d::RpeResult& r) {
+            Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor> a(
+                static_cast<Eigen::Index>(r.pairs.size()), 6);
+            for (std::size_t i = 0; i < r.pairs.size(); ++i) {
+              const auto& p = r.pairs[i];
+              a.row(static_cast<Eigen::Index>(i)) << p.t_est0, p.t_est1, p.t_gt0, p.t_gt1,
+                  p.trans_error, p.rot_error_rad;
+            }
+            return a;
+          },
+          "(k, 6) array: t_est0 t_est1 t_gt0 t_gt1 trans_error_m rot_error_rad");
   m.def(
       "evaluate_rpe",
       [](const Eigen::Ref<const Rows>& gt, const Eigen::Ref<const Rows>& est, double delta,

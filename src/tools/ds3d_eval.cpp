@@ -111,7 +111,8 @@ int main(int argc, char** argv) {
       if (json) {
         std::string out = "{\"compared_pose_pairs\":" + std::to_string(r.compared_pose_pairs) +
                           ",\"unit\":\"m\",\"rmse\":" + json_number(r.rmse) +
-                          ",\"mean\":" + json_number(r.mean) + ",\"median\":" + json_number(r.median) +
+                          ",\"mean\":" + json_number(r.mean) +
+                          ",\"median\":" + json_number(r.median) +
                           ",\"std\":" + json_number(r.std) + ",\"min\":" + json_number(r.min) +
                           ",\"max\":" + json_number(r.max) + ",\"alignment\":{\"rotation\":[";
         for (int k = 0; k < 3; ++k) {
@@ -132,7 +133,8 @@ int main(int argc, char** argv) {
         print_line("absolute_translational_error.std", r.std, "m");
         print_line("absolute_translational_error.min", r.min, "m");
         print_line("absolute_translational_error.max", r.max, "m");
-        if (ate.alignment == ds3d::Alignment::kSim3) print_line("alignment.scale", r.scale_factor, "");
+        if (ate.alignment == ds3d::Alignment::kSim3)
+          print_line("alignment.scale", r.scale_factor, "");
       }
     } else {
       const auto gt = ds3d::read_tum_trajectory(gt_path);

@@ -5,12 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <cstdio>
-#include <vector>
 #include <filesystem>
 #include <string>
-#include <unistd.h>
+#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -35,7 +35,8 @@ TEST(AtePlot, DrawsBothPanels) {
   cv::cvtColor(img, gray, cv::COLOR_BGR2GRAY);
   EXPECT_GT(cv::countNonZero(gray(cv::Rect(0, 60, 500, 440)) < 200), 2000);
   EXPECT_GT(cv::countNonZero(gray(cv::Rect(500, 60, 500, 440)) < 200), 2000);
-  const fs::path out = fs::temp_directory_path() / ("ds3d_plot_" + std::to_string(::getpid()) + ".png");
+  const fs::path out =
+      fs::temp_directory_path() / ("ds3d_plot_" + std::to_string(::getpid()) + ".png");
   ds3d::write_ate_plot(out, gt, r);
   EXPECT_EQ(cv::imread(out.string()).cols, 1400);
   fs::remove(out);
@@ -49,7 +50,8 @@ TEST(AtePlot, DrawsBothPanels) {
   const auto lines = [](const std::string& s) {
     std::vector<std::string> out;
     std::size_t a = 0;
-    for (std::size_t b; (b = s.find('\n', a)) != std::string::npos; a = b + 1) out.push_back(s.substr(a, b - a));
+    for (std::size_t b; (b = s.find('\n', a)) != std::string::npos; a = b + 1)
+      out.push_back(s.substr(a, b - a));
     return out;
   };
   const auto g = lines(got);
@@ -59,10 +61,10 @@ TEST(AtePlot, DrawsBothPanels) {
     char gn[128], gu[16], wn[128], wu[16];
     double gv = 0, wv = 0;
     if (std::sscanf(g[i].c_str(), "%127s %lf %15s", gn, &gv, gu) != 3 ||
-        std::sscanf(w[i].c_str(), "%127s %lf %15s", wn, &wv, wu) != 3 ||
-        std::string(gn) != wn || std::string(gu) != wu ||
-        std::abs(gv - wv) > (std::string(gu) == "deg" ? 1.1e-5 : 1.1e-6)) {
-      return ::testing::AssertionFailure() << "line " << i << ": '" << g[i] << "' vs '" << w[i] << "'";
+        std::sscanf(w[i].c_str(), "%127s %lf %15s", wn, &wv, wu) != 3 || std::string(gn) != wn ||
+        std::string(gu) != wu || std::abs(gv - wv) > (std::string(gu) == "deg" ? 1.1e-5 : 1.1e-6)) {
+      return ::testing::AssertionFailure()
+             << "line " << i << ": '" << g[i] << "' vs '" << w[i] << "'";
     }
   }
   return ::testing::AssertionSuccess();
@@ -85,11 +87,12 @@ TEST(Ds3dEvalCli, PrintsWhatTheTumScriptsPrint) {
     if (!fs::exists(e.path() / "expected.json")) continue;
     SCOPED_TRACE(e.path().filename().string());
     const auto exp = ds3d::test::read_json(e.path() / "expected.json");
-    const std::string files =
-        " '" + (e.path() / "groundtruth.txt").string() + "' '" + (e.path() / "estimate.txt").string() + "'";
+    const std::string files = " '" + (e.path() / "groundtruth.txt").string() + "' '" +
+                              (e.path() / "estimate.txt").string() + "'";
     const auto& ref = exp.at("reference_cli_stdout");
     EXPECT_TRUE(same_report(run(exe.string() + " ate" + files), ref.at("ate").as_string()));
-    for (const auto& [key, unit] : {std::pair{"rpe_delta_1s", "s"}, std::pair{"rpe_delta_1f", "f"}}) {
+    for (const auto& [key, unit] :
+         {std::pair{"rpe_delta_1s", "s"}, std::pair{"rpe_delta_1f", "f"}}) {
       std::string got = run(exe.string() + " rpe" + files + " --delta 1 --delta-unit " + unit);
       std::string want = ref.at(key).as_string();
       // evaluate_rpe.py prints the rotational median in radians (a bug); we print degrees.

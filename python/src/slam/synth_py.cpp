@@ -23,8 +23,8 @@ py::array mat_to_array(const cv::Mat& m) {
   py::array_t<T> a(shape);
   const std::size_t row_bytes = static_cast<std::size_t>(m.cols) * m.elemSize();
   for (int y = 0; y < m.rows; ++y) {
-    std::memcpy(reinterpret_cast<char*>(a.mutable_data()) + static_cast<std::size_t>(y) * row_bytes, m.ptr(y),
-                row_bytes);
+    std::memcpy(reinterpret_cast<char*>(a.mutable_data()) + static_cast<std::size_t>(y) * row_bytes,
+                m.ptr(y), row_bytes);
   }
   return a;
 }
@@ -52,7 +52,8 @@ py::dict frame_dict(const ds3d::synth::SynthFrame& f) {
   d["timestamp"] = f.timestamp;
   d["T_world_cam"] = py::array_t<double>({4, 4});
   Eigen::Matrix<double, 4, 4, Eigen::RowMajor> m = f.T_world_cam.matrix();
-  std::memcpy(d["T_world_cam"].cast<py::array_t<double>>().mutable_data(), m.data(), sizeof(double) * 16);
+  std::memcpy(d["T_world_cam"].cast<py::array_t<double>>().mutable_data(), m.data(),
+              sizeof(double) * 16);
   d["rgb"] = mat_to_array<std::uint8_t>(f.rgb);
   d["depth"] = mat_to_array<std::uint16_t>(f.depth);
   d["depth_true"] = mat_to_array<float>(f.depth_true);
@@ -90,36 +91,44 @@ ds3d::synth::SynthOptions make_options(const std::string& scenario, int frames, 
 }  // namespace
 
 void bind_synth(py::module_& m) {
-  m.def("camera_preset", [](const std::string& n) { return camera_dict(ds3d::camera_preset(n)); },
-        py::arg("name"), "Intrinsics dict for 'tum1', 'tum2', 'tum3', 'tum_ros' or 'bonn'.");
-  m.def("read_camera_file", [](const std::string& p) { return camera_dict(ds3d::read_camera_file(p)); },
-        py::arg("path"), "camera.txt (fx fy cx cy k1 k2 p1 p2 k3 depth_scale) as a dict.");
+  m.def(
+      "camera_preset", [](const std::string& n) { return camera_dict(ds3d::camera_preset(n)); },
+      py::arg("name"), "Intrinsics dict for 'tum1', 'tum2', 'tum3', 'tum_ros' or 'bonn'.");
+  m.def(
+      "read_camera_file",
+      [](const std::string& p) { return camera_dict(ds3d::read_camera_file(p)); }, py::arg("path"),
+      "camera.txt (fx fy cx cy k1 k2 p1 p2 k3 depth_scale) as a dict.");
 
-  py::class_<ds3d::RgbdDataset>(m, "RgbdDataset",
-                                "A TUM/Bonn RGB-D folder read frame by frame (include/ds3d/dataset.hpp).")
+  py::class_<ds3d::RgbdDataset>(
+      m, "RgbdDataset", "A TUM/Bonn RGB-D folder read frame by frame (include/ds3d/dataset.hpp).")
       .def(py::init([](const std::string& dir, double max_difference, double offset) {
-             return ds3d::RgbdDataset::open(dir, {.max_difference = max_difference, .offset = offset});
+             return ds3d::RgbdDataset::open(dir,
+                                            {.max_difference = max_difference, .offset = offset});
            }),
            py::arg("directory"), py::arg("max_difference") = 0.02, py::arg("offset") = 0.0)
       .def("__len__", &ds3d::RgbdDataset::size)
-      .def("frame",
-           [](const ds3d::RgbdDataset& ds, std::size_t i) {
-             ds3d::RgbdFrame f;
-             {
-               py::gil_scoped_release release;
-               f = ds.frame(i);
-             }
-             py::dict d;
-             d["index"] = f.index;
-             d["timestamp"] = f.timestamp;
-             d["depth_timestamp"] = f.depth_timestamp;
-             d["rgb"] = mat_to_array<std::uint8_t>(f.rgb);
-             d["depth"] = mat_to_array<std::uint16_t>(f.depth);
-             return d;
-           },
-           py::arg("i"), "dict: index, timestamp, depth_timestamp, rgb (H,W,3 BGR uint8), depth (H,W uint16)")
-      .def_property_readonly("camera", [](const ds3d::RgbdDataset& ds) { return camera_dict(ds.camera()); })
-      .def_property_readonly("directory", [](const ds3d::RgbdDataset& ds) { return ds.directory().string(); })
+      .def(
+          "frame",
+          [](const ds3d::RgbdDataset& ds, std::size_t i) {
+            ds3d::RgbdFrame f;
+            {
+              py::gil_scoped_release release;
+              f = ds.frame(i);
+            }
+            py::dict d;
+            d["index"] = f.index;
+            d["timestamp"] = f.timestamp;
+            d["depth_timestamp"] = f.depth_timestamp;
+            d["rgb"] = mat_to_array<std::uint8_t>(f.rgb);
+            d["depth"] = mat_to_array<std::uint16_t>(f.depth);
+            return d;
+          },
+          py::arg("i"),
+          "dict: index, timestamp, depth_timestamp, rgb (H,W,3 BGR uint8), depth (H,W uint16)")
+      .def_property_readonly("camera",
+                             [](const ds3d::RgbdDataset& ds) { return camera_dict(ds.camera()); })
+      .def_property_readonly("directory",
+                             [](const ds3d::RgbdDataset& ds) { return ds.directory().string(); })
       .def_property_readonly("groundtruth_path", [](const ds3d::RgbdDataset& ds) -> py::object {
         const auto p = ds.groundtruth_path();
         return p ? py::object(py::str(p->string())) : py::object(py::none());
@@ -131,8 +140,8 @@ void bind_synth(py::module_& m) {
              return ds3d::synth::SyntheticScene(
                  make_options(scenario, frames, seed, humans, fps, depth_noise, false));
            }),
-           py::arg("scenario"), py::arg("frames"), py::arg("seed"), py::arg("humans"), py::arg("fps"),
-           py::arg("depth_noise"))
+           py::arg("scenario"), py::arg("frames"), py::arg("seed"), py::arg("humans"),
+           py::arg("fps"), py::arg("depth_noise"))
       .def("__len__", &ds3d::synth::SyntheticScene::size)
       .def("render", [](const ds3d::synth::SyntheticScene& s, std::size_t i) {
         ds3d::synth::SynthFrame f;
@@ -159,6 +168,6 @@ void bind_synth(py::module_& m) {
         d["total_seconds"] = s.total_seconds;
         return d;
       },
-      py::arg("out_dir"), py::arg("scenario"), py::arg("frames"), py::arg("seed"), py::arg("humans"),
-      py::arg("fps"), py::arg("depth_noise"), py::arg("parts"));
+      py::arg("out_dir"), py::arg("scenario"), py::arg("frames"), py::arg("seed"),
+      py::arg("humans"), py::arg("fps"), py::arg("depth_noise"), py::arg("parts"));
 }

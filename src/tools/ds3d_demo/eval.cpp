@@ -27,9 +27,11 @@ void run_eval_demo(const ds3d::demo::Context& ctx) {
   const auto s = ds3d::synth::generate_sequence(dir, opt);
   const auto ds = ds3d::RgbdDataset::open(dir);
   std::printf("  generated %zu frames into %s (render %.1f ms/frame CPU, %.0f dynamic px/frame)\n",
-              s.frames, dir.string().c_str(), 1e3 * s.render_seconds / static_cast<double>(s.frames),
+              s.frames, dir.string().c_str(),
+              1e3 * s.render_seconds / static_cast<double>(s.frames),
               static_cast<double>(s.dynamic_pixels) / static_cast<double>(s.frames));
-  std::printf("  read back: %zu associated rgb-d pairs, camera fx %.1f\n", ds.size(), ds.camera().fx);
+  std::printf("  read back: %zu associated rgb-d pairs, camera fx %.1f\n", ds.size(),
+              ds.camera().fx);
 
   // "Estimate": ground truth at the frame stamps, with a random walk drift and 3 mm noise,
   // expressed in a rotated, shifted frame (as a SLAM system's own world frame would be).
@@ -54,15 +56,18 @@ void run_eval_demo(const ds3d::demo::Context& ctx) {
   }
   ds3d::write_tum_trajectory(dir / "estimate_noisy.txt", est);
   const auto ate = ds3d::evaluate_ate(gt, est);
-  const auto rpe = ds3d::evaluate_rpe(gt, est, {.delta = 1, .delta_unit = ds3d::DeltaUnit::kFrames});
+  const auto rpe =
+      ds3d::evaluate_rpe(gt, est, {.delta = 1, .delta_unit = ds3d::DeltaUnit::kFrames});
   std::printf("  ATE (SE(3)-aligned): %zu pairs, rmse %.4f m, median %.4f m, max %.4f m\n",
               ate.compared_pose_pairs, ate.rmse, ate.median, ate.max);
   std::printf("  RPE (1 frame): %zu pairs, trans rmse %.4f m, rot rmse %.3f deg\n",
               rpe.compared_pose_pairs, rpe.translational.rmse, rpe.rotational.rmse);
   const auto plot = ctx.out_dir / "eval_ate.png";
-  ds3d::write_ate_plot(plot, gt, ate, {.title = "demo: noisy ground truth vs synthetic walking_xyz"});
+  ds3d::write_ate_plot(plot, gt, ate,
+                       {.title = "demo: noisy ground truth vs synthetic walking_xyz"});
   std::printf("  plot: %s  (same numbers: build/bin/ds3d-eval ate %s %s)\n", plot.string().c_str(),
-              (dir / "groundtruth.txt").string().c_str(), (dir / "estimate_noisy.txt").string().c_str());
+              (dir / "groundtruth.txt").string().c_str(),
+              (dir / "estimate_noisy.txt").string().c_str());
 }
 
 }  // namespace
