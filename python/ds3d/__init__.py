@@ -13,3 +13,4 @@ from . import htx  # noqa: F401  (lazy: torch is imported on first use)
 from .hdbscan import HdbscanResult, hdbscan, hdbscan_precomputed  # noqa: F401
 
 __all__ = ["__version__"]
+from . import synth  # noqa: F401,E402
