@@ -87,6 +87,17 @@ def test_small_and_empty_inputs(pair):
     assert r["boxes"].shape == ref.shape
 
 
+def test_far_outlier_uses_the_brute_force_ball_query(pair):
+    model, det = pair
+    pts = scene(3, n=2000)
+    pts[11] = [300.0, -250.0, 40.0]  # bounding box too large for the grid: brute-force path
+    _, d = htx.reference_detect(model, pts, return_details=True)
+    r = det.run(pts, part_logits=True)
+    np.testing.assert_array_equal(r["centre_indices"], d["centre_indices"])
+    np.testing.assert_allclose(r["objectness"], d["objectness"], atol=TOL, rtol=0)
+    np.testing.assert_allclose(r["part_logits"], d["part_logits"], atol=TOL, rtol=0)
+
+
 def test_bad_input_raises(pair):
     _, det = pair
     pts = scene(0, n=100)
