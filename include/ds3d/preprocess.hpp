@@ -43,11 +43,12 @@ struct PreprocessParams {
   /// Throws ds3d::InvalidArgument naming the bad field and value.
   void validate() const;
 
-  /// Defaults of `ground`: t = 0.02 m, 200 iterations, prior -y within 30°, camera above it.
+  /// Defaults of `ground`: t = 0.02 m, 2000 iterations (triples off the prior are rejected
+  /// before scoring, so most cost almost nothing), prior -y within 30°, camera above it.
   static RansacPlaneParams make_default_ground() {
     RansacPlaneParams p;
     p.distance_threshold = 0.02;
-    p.max_iterations = 200;
+    p.max_iterations = 2000;
     p.normal_prior = Eigen::Vector3d(0.0, -1.0, 0.0);
     p.max_angle_deg = 30.0;
     p.origin_above = true;

@@ -7,6 +7,7 @@
 #include <pybind11/stl.h>
 
 #include <limits>
+#include <array>
 #include <optional>
 
 #include "ds3d/preprocess.hpp"
@@ -20,7 +21,7 @@ ds3d::PreprocessResult run(
     const Eigen::Ref<const ds3d::DepthImageU16, 0, Eigen::OuterStride<>>& depth, double fx,
     double fy, double cx, double cy, double depth_scale, double leaf_size, int stride,
     double min_depth, double max_depth, bool remove_ground, double ground_threshold,
-    std::int64_t ground_max_iterations, std::optional<Eigen::Vector3d> ground_normal_prior,
+    std::int64_t ground_max_iterations, std::optional<std::array<double, 3>> ground_normal_prior,
     double ground_max_angle_deg, bool remove_outliers, double outlier_radius,
     std::int64_t outlier_min_neighbors, int num_threads) {
   const char* fn = "ds3d.preprocess";
@@ -48,7 +49,10 @@ ds3d::PreprocessResult run(
   p.remove_ground = remove_ground;
   p.ground.distance_threshold = ground_threshold;
   p.ground.max_iterations = static_cast<std::uint32_t>(ground_max_iterations);
-  p.ground.normal_prior = ground_normal_prior ? *ground_normal_prior : Eigen::Vector3d::Zero();
+  p.ground.normal_prior = ground_normal_prior
+                              ? Eigen::Vector3d((*ground_normal_prior)[0], (*ground_normal_prior)[1],
+                                                (*ground_normal_prior)[2])
+                              : Eigen::Vector3d::Zero();
   p.ground.origin_above = static_cast<bool>(ground_normal_prior);
   p.ground.max_angle_deg = ground_max_angle_deg;
   p.remove_outliers = remove_outliers;
@@ -94,7 +98,8 @@ void bind_preprocess(py::module_& m) {
         py::arg("max_depth") = d.depth.max_depth, py::arg("remove_ground") = d.remove_ground,
         py::arg("ground_threshold") = d.ground.distance_threshold,
         py::arg("ground_max_iterations") = d.ground.max_iterations,
-        py::arg("ground_normal_prior") = std::optional<Eigen::Vector3d>(d.ground.normal_prior),
+        py::arg("ground_normal_prior") = std::optional<std::array<double, 3>>(std::array<double, 3>{
+            d.ground.normal_prior.x(), d.ground.normal_prior.y(), d.ground.normal_prior.z()}),
         py::arg("ground_max_angle_deg") = d.ground.max_angle_deg,
         py::arg("remove_outliers") = d.remove_outliers, py::arg("outlier_radius") = d.outlier.radius,
         py::arg("outlier_min_neighbors") = d.outlier.min_neighbors,
