@@ -27,8 +27,11 @@ namespace ds3d {
 
 /// Parameters of preprocess(): one struct for the whole chain.
 struct PreprocessParams {
-  DepthToPointsParams depth{};  ///< back-projection (stride, ROI, depth range, undistortion)
-  VoxelGridParams voxel{};      ///< down-sampling (leaf_size default 0.05 m)
+  /// Back-projection; default stride 2 (every other pixel and row: at 1-5 m that is 4-20 mm
+  /// apart, far below the leaf, and 4x less work).
+  DepthToPointsParams depth = make_default_depth();
+  /// Down-sampling; default leaf 0.1 m, which leaves ~4k points of a 640x480 indoor frame.
+  VoxelGridParams voxel = make_default_voxel();
   bool remove_ground = true;    ///< run RANSAC on the centroids and drop the plane's inliers
   /// Ground plane search on the centroids. Default prior: camera y axis points down, so "up" is
   /// -y; the floor must be within 30° of it and below the camera (origin_above), so a ceiling
@@ -37,7 +40,7 @@ struct PreprocessParams {
   /// Minimum inliers (fraction of the centroids) for the plane to count as ground, in [0, 1].
   double min_ground_fraction = 0.05;
   bool remove_outliers = true;  ///< run radius outlier removal on the remaining centroids
-  RadiusOutlierParams outlier = make_default_outlier();  ///< R = 0.1 m, k = 4 (on centroids)
+  RadiusOutlierParams outlier = make_default_outlier();  ///< R = 0.25 m, k = 4 (on centroids)
   /// Threads for every stage (overrides the stages' own num_threads): 0 = all, < 0 invalid.
   int num_threads = 1;
   /// Throws ds3d::InvalidArgument naming the bad field and value.
@@ -54,10 +57,23 @@ struct PreprocessParams {
     p.origin_above = true;
     return p;
   }
-  /// Defaults of `outlier`: R = 0.1 m, k = 4 (sized for 0.05 m centroids).
+  /// Defaults of `depth`: stride 2, everything else as DepthToPointsParams.
+  static DepthToPointsParams make_default_depth() {
+    DepthToPointsParams p;
+    p.stride = 2;
+    return p;
+  }
+  /// Defaults of `voxel`: leaf 0.1 m.
+  static VoxelGridParams make_default_voxel() {
+    VoxelGridParams p;
+    p.leaf_size = 0.1;
+    return p;
+  }
+  /// Defaults of `outlier`: R = 0.25 m, k = 4 (sized for 0.1 m centroids: a centroid needs a
+  /// few neighbours within 2.5 leaves).
   static RadiusOutlierParams make_default_outlier() {
     RadiusOutlierParams p;
-    p.radius = 0.1;
+    p.radius = 0.25;
     p.min_neighbors = 4;
     return p;
   }

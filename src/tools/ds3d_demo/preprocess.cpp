@@ -61,9 +61,7 @@ DS3D_DEMO_STEP(20, "preprocessing: depth frame -> detector input", [](const ds3d
     }
   }
   ds3d::PreprocessParams params;
-  params.voxel.leaf_size = 0.1;  // ~4k detector points, as in the paper's compressed cloud
-  params.outlier.radius = 0.25;  // outlier radius and k scaled with the leaf
-  params.outlier.min_neighbors = 4;
+  // Defaults: stride 2, leaf 0.1 m (~4k detector points), ground prior -y, R 0.25 m, k 4.
   const int runs = ctx.quick ? 3 : 21;
   std::vector<double> ms;
   ds3d::PreprocessResult r;
@@ -76,7 +74,7 @@ DS3D_DEMO_STEP(20, "preprocessing: depth frame -> detector input", [](const ds3d
   std::sort(ms.begin(), ms.end());
   std::cout << std::fixed << std::setprecision(2);
   std::cout << "640x480 depth: " << r.num_input << " points -> " << r.num_voxels
-            << " voxel centroids (leaf 0.1 m) -> " << r.num_ground << " ground ("
+            << " voxel centroids (stride 2, leaf 0.1 m) -> " << r.num_ground << " ground ("
             << (r.ground_found ? "plane found" : "no plane") << ": n = "
             << r.ground_plane.head<3>().transpose() << ", d = " << r.ground_plane[3] << ") -> "
             << r.num_outliers << " outliers -> " << r.points.rows() << " detector points\n";
