@@ -30,7 +30,8 @@ TEST(Preprocess, EqualsTheStagesRunByHand) {
   std::vector<std::uint32_t> rest_row;
   for (std::size_t i = 0; i < is_ground.size(); ++i) {
     if (is_ground[i]) continue;
-    rest.row(static_cast<Eigen::Index>(rest_row.size())) = vox.centroids.row(static_cast<Eigen::Index>(i));
+    rest.row(static_cast<Eigen::Index>(rest_row.size())) =
+        vox.centroids.row(static_cast<Eigen::Index>(i));
     rest_row.push_back(static_cast<std::uint32_t>(i));
   }
   const auto kept = ds3d::remove_radius_outliers(rest, params.outlier);

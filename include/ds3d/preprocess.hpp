@@ -32,7 +32,7 @@ struct PreprocessParams {
   DepthToPointsParams depth = make_default_depth();
   /// Down-sampling; default leaf 0.1 m, which leaves ~4k points of a 640x480 indoor frame.
   VoxelGridParams voxel = make_default_voxel();
-  bool remove_ground = true;    ///< run RANSAC on the centroids and drop the plane's inliers
+  bool remove_ground = true;  ///< run RANSAC on the centroids and drop the plane's inliers
   /// Ground plane search on the centroids. Default prior: camera y axis points down, so "up" is
   /// -y; the floor must be within 30° of it and below the camera (origin_above), so a ceiling
   /// is never taken for the ground (set normal_prior to zero to accept any plane).
@@ -81,17 +81,17 @@ struct PreprocessParams {
 
 /// Output of preprocess().
 struct PreprocessResult {
-  Points3f points;                     ///< detector input: kept voxel centroids [m], key order
-  std::vector<std::uint32_t> voxel;    ///< for each output row, its row in the voxel stage
-  std::vector<std::uint32_t> source;   ///< for each output row, the representative input point
-  Pixels2i pixels;                     ///< (u, v) of each source point (depth input only)
-  bool ground_found = false;           ///< a ground plane was found and removed
+  Points3f points;                    ///< detector input: kept voxel centroids [m], key order
+  std::vector<std::uint32_t> voxel;   ///< for each output row, its row in the voxel stage
+  std::vector<std::uint32_t> source;  ///< for each output row, the representative input point
+  Pixels2i pixels;                    ///< (u, v) of each source point (depth input only)
+  bool ground_found = false;          ///< a ground plane was found and removed
   Eigen::Vector4d ground_plane = Eigen::Vector4d::Zero();  ///< (a, b, c, d) when ground_found
-  std::size_t num_input = 0;           ///< points after back-projection (or given)
-  std::size_t num_voxels = 0;          ///< centroids after down-sampling
-  std::size_t num_ground = 0;          ///< centroids removed as ground
-  std::size_t num_outliers = 0;        ///< centroids removed as outliers
-  std::size_t num_non_finite = 0;      ///< input points skipped as non-finite
+  std::size_t num_input = 0;       ///< points after back-projection (or given)
+  std::size_t num_voxels = 0;      ///< centroids after down-sampling
+  std::size_t num_ground = 0;      ///< centroids removed as ground
+  std::size_t num_outliers = 0;    ///< centroids removed as outliers
+  std::size_t num_non_finite = 0;  ///< input points skipped as non-finite
   /// Wall time per stage [ms]: depth, voxel, ground, outlier (depth is 0 for cloud input).
   double ms_depth = 0, ms_voxel = 0, ms_ground = 0, ms_outlier = 0;
 };
@@ -112,7 +112,8 @@ struct PreprocessResult {
 /// empty and `source` indexes `cloud`).
 /// @throws ds3d::InvalidArgument on bad params or a non-finite point under kThrow.
 template <PointCloud C>
-[[nodiscard]] PreprocessResult preprocess_cloud(const C& cloud, const PreprocessParams& params = {});
+[[nodiscard]] PreprocessResult preprocess_cloud(const C& cloud,
+                                                const PreprocessParams& params = {});
 
 }  // namespace ds3d
 

@@ -34,7 +34,8 @@ void bind_radius_outlier(py::module_& m) {
                                         "Output of remove_radius_outliers "
                                         "(include/ds3d/radius_outlier.hpp).")
       .def_property_readonly(
-          "kept", [](const ds3d::RadiusOutlierResult& r) { return ds3d::py_util::to_numpy(r.kept); },
+          "kept",
+          [](const ds3d::RadiusOutlierResult& r) { return ds3d::py_util::to_numpy(r.kept); },
           "(K,) uint32 ascending input indices of kept points")
       .def_readonly("num_non_finite", &ds3d::RadiusOutlierResult::num_non_finite)
       .def("__repr__", [](const ds3d::RadiusOutlierResult& r) {

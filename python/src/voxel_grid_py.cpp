@@ -46,7 +46,8 @@ void bind_voxel_grid(py::module_& m) {
       .def_readonly("centroids", &ds3d::VoxelGridResult::centroids, "(M, 3) float32 centroids")
       .def_readonly("keys", &ds3d::VoxelGridResult::keys, "(M, 3) int64 voxel keys, sorted")
       .def_property_readonly(
-          "counts", [](const ds3d::VoxelGridResult& r) { return ds3d::py_util::to_numpy(r.counts); },
+          "counts",
+          [](const ds3d::VoxelGridResult& r) { return ds3d::py_util::to_numpy(r.counts); },
           "(M,) uint32 member counts")
       .def_property_readonly(
           "representative",

@@ -270,10 +270,9 @@ template <PointCloud C>
     auto decode = [&](std::uint64_t ck) {
       const std::uint64_t mz = (std::uint64_t{1} << bz) - 1;
       const std::uint64_t my = (std::uint64_t{1} << by) - 1;
-      return std::array<std::int64_t, 3>{
-          static_cast<std::int64_t>(ck >> sx) + all.lo[0],
-          static_cast<std::int64_t>((ck >> sy) & my) + all.lo[1],
-          static_cast<std::int64_t>(ck & mz) + all.lo[2]};
+      return std::array<std::int64_t, 3>{static_cast<std::int64_t>(ck >> sx) + all.lo[0],
+                                         static_cast<std::int64_t>((ck >> sy) & my) + all.lo[1],
+                                         static_cast<std::int64_t>(ck & mz) + all.lo[2]};
     };
     if (bits <= 32) {
       std::vector<std::uint64_t> pairs;
