@@ -106,4 +106,8 @@ fuzz: deps
 	$(FUZZ_DIR)/tum_trajectory_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=8192 $(FUZZ_DIR)/corpus_traj
 	$(FUZZ_DIR)/tum_list_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=4096 $(FUZZ_DIR)/corpus_list
 	$(FUZZ_DIR)/camera_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=2048 $(FUZZ_DIR)/corpus_camera
+	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/weights_io_fuzz.cpp src/weights_io.cpp src/sparse_detector.cpp \
+	  -o $(FUZZ_DIR)/weights_io_fuzz
+	@mkdir -p $(FUZZ_DIR)/corpus_weights && cp tests/data/htx/*.safetensors $(FUZZ_DIR)/corpus_weights/
+	$(FUZZ_DIR)/weights_io_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=65536 $(FUZZ_DIR)/corpus_weights
 	@echo "make fuzz: no crash in $(FUZZ_SECONDS) s per target"
