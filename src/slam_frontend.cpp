@@ -96,6 +96,7 @@ struct MapPoint {
 
 // Shared per-keypoint data of frames and keyframes.
 struct FrameData {
+  float close_depth = 3.0F;
   std::vector<Eigen::Vector2f> uv;
   std::vector<float> depth;
   std::vector<int> octave;
@@ -103,6 +104,7 @@ struct FrameData {
   std::vector<int> points;  // map point id or -1
   FeatureGrid grid;
   [[nodiscard]] std::size_t size() const { return uv.size(); }
+  [[nodiscard]] bool is_close(std::size_t i) const { return depth[i] > 0 && depth[i] <= close_depth; }
   [[nodiscard]] double u_right(std::size_t i, double bf) const {
     return depth[i] > 0 ? uv[i].x() - bf / depth[i] : -1.0;
   }
@@ -289,6 +291,7 @@ struct SlamFrontend::Impl {
   FrameData make_frame_data(const PreparedFrame& pf) const {
     FrameData f;
     const auto& feat = pf.features;
+    f.close_depth = feat.close_depth;
     for (std::size_t i = 0; i < feat.size(); ++i) {
       if (!pf.dynamic.empty() && pf.dynamic[i] != 0) continue;
       f.uv.push_back(feat.undistorted[i]);
@@ -589,7 +592,7 @@ struct SlamFrontend::Impl {
     int tracked_close = 0;
     int untracked_close = 0;
     for (std::size_t i = 0; i < f.size(); ++i) {
-      if (f.depth[i] <= 0) continue;
+      if (!f.is_close(i)) continue;
       if (f.points[i] >= 0) {
         ++tracked_close;
       } else {
@@ -618,15 +621,26 @@ struct SlamFrontend::Impl {
     Keyframe& K = keyframes.back();
     const Eigen::Isometry3d T_wc = T_cw.inverse();
     for (std::size_t i = 0; i < K.data.size(); ++i) {
-      int pid = K.data.points[i];
-      if (pid >= 0) {
-        MapPoint& p = points[static_cast<std::size_t>(pid)];
-        p.obs.emplace_back(K.id, static_cast<int>(i));
-        update_point_geometry(p);
-        update_point_descriptor(p);
-        continue;
-      }
-      if (K.data.depth[i] <= 0) continue;
+      const int pid = K.data.points[i];
+      if (pid < 0) continue;
+      MapPoint& p = points[static_cast<std::size_t>(pid)];
+      p.obs.emplace_back(K.id, static_cast<int>(i));
+      update_point_geometry(p);
+      update_point_descriptor(p);
+    }
+    // New points from depth (ORB-SLAM2's CreateNewKeyFrame): by increasing depth, every close
+    // keypoint, and far ones until 100 keypoints have points. The first keyframe uses them all.
+    std::vector<std::pair<float, std::size_t>> by_depth;
+    for (std::size_t i = 0; i < K.data.size(); ++i) {
+      if (K.data.depth[i] > 0) by_depth.emplace_back(K.data.depth[i], i);
+    }
+    std::stable_sort(by_depth.begin(), by_depth.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    int n_points = 0;
+    for (const auto& [depth_i, i] : by_depth) {
+      if (K.id > 0 && depth_i > K.data.close_depth && n_points > 100) break;
+      ++n_points;
+      if (K.data.points[i] >= 0) continue;
+      int pid = -1;
       MapPoint p;
       const double z = K.data.depth[i];
       const Eigen::Vector3d pc((K.data.uv[i].x() - k.cx) / k.fx * z, (K.data.uv[i].y() - k.cy) / k.fy * z, z);

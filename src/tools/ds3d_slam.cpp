@@ -161,7 +161,7 @@ void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
   cv::putText(img, label.str(), {8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 255, 255), 1,
               cv::LINE_AA);
   char name[32];
-  std::snprintf(name, sizeof(name), "frame_%06zu.jpg", r.index);
+  std::snprintf(name, sizeof(name), "frame_%06zu.png", r.index);
   const auto path = dir / name;
   DS3D_CHECK_AS(ds3d::IoError, cv::imwrite(path.string(), img), "ds3d-slam: cannot write ",
                 path.string());
