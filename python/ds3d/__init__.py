@@ -9,5 +9,6 @@ pure-Python conveniences. C++ exceptions map to Python as follows:
 """
 from ._ds3d import __version__  # noqa: F401
 from ._ds3d import *  # noqa: F401,F403
+from .slam import run_slam  # noqa: F401
 
 __all__ = ["__version__"]
