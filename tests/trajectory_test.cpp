@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <unistd.h>
 #include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -354,6 +355,58 @@ TEST(Rpe, RejectsBadInput) {
   EXPECT_THROW((void)ds3d::evaluate_rpe(gt, gt, {.delta = std::nan("")}), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::evaluate_rpe(gt, {gt[0]}), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::evaluate_rpe(gt, helix(50, 0.01, 1000.0)), ds3d::InvalidArgument);
+}
+
+}  // namespace
+
+namespace {
+
+// DynaSLAM's own trajectories and the numbers its authors' run of the TUM scripts printed
+// (../shared/data/tum_fr3_dynamic_groundtruth): numbers nobody here made. Skipped without data.
+std::map<std::string, double> printed_numbers(const fs::path& p) {
+  std::map<std::string, double> out;
+  for (const auto& line : ds3d::test::read_lines(p)) {
+    char name[128];
+    double v = 0;
+    if (std::sscanf(line.c_str(), "%127s %lf", name, &v) == 2) out[name] = v;
+  }
+  return out;
+}
+
+TEST(RealData, DynaSlamTrajectoriesGiveThePrintedAteAndRpe) {
+  const fs::path root = ds3d::test::shared_data_dir();
+  if (root.empty() || !fs::exists(root / "tum_fr3_dynamic_groundtruth")) GTEST_SKIP() << "no data";
+  const fs::path dir = root / "tum_fr3_dynamic_groundtruth";
+  std::size_t checked = 0;
+  for (const char* seq : {"fr3_sitting_static", "fr3_walk_halfsphere", "fr3_walk_rpy",
+                          "fr3_walk_static", "fr3_walk_xyz"}) {
+    SCOPED_TRACE(seq);
+    const fs::path res = dir / "dynaslam_results" / seq;
+    const fs::path ate_file = res / (std::string(seq) + "_ate_0.txt");
+    if (!fs::exists(ate_file)) continue;
+    const fs::path gt_file = dir / (std::string(seq) + ".txt");
+    const auto gt = ds3d::read_tum_file(gt_file, {.keep_zero_quaternion = true}).trajectory;
+    const auto est = ds3d::read_tum_file(res / "CameraTrajectory_0.txt", {.keep_zero_quaternion = true}).trajectory;
+    const auto ate = ds3d::evaluate_ate(gt, est);
+    auto want = printed_numbers(ate_file);
+    EXPECT_EQ(static_cast<double>(ate.compared_pose_pairs), want["compared_pose_pairs"]);
+    EXPECT_NEAR(ate.rmse, want["absolute_translational_error.rmse"], 6e-7);
+    EXPECT_NEAR(ate.mean, want["absolute_translational_error.mean"], 6e-7);
+    EXPECT_NEAR(ate.median, want["absolute_translational_error.median"], 6e-7);
+    EXPECT_NEAR(ate.max, want["absolute_translational_error.max"], 6e-7);
+    const fs::path rpe_file = res / (std::string(seq) + "_rpe_0.txt");
+    if (fs::exists(rpe_file)) {
+      const auto rpe = ds3d::evaluate_rpe(ds3d::read_tum_trajectory(gt_file),
+                                          ds3d::read_tum_trajectory(res / "CameraTrajectory_0.txt"));
+      want = printed_numbers(rpe_file);
+      EXPECT_EQ(static_cast<double>(rpe.compared_pose_pairs), want["compared_pose_pairs"]);
+      EXPECT_NEAR(rpe.translational.rmse, want["translational_error.rmse"], 6e-7);
+      EXPECT_NEAR(rpe.translational.max, want["translational_error.max"], 6e-7);
+      EXPECT_NEAR(rpe.rotational.rmse, want["rotational_error.rmse"], 6e-7);
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 5U);
 }
 
 }  // namespace

@@ -12,3 +12,4 @@ from ._ds3d import *  # noqa: F401,F403
 from .slam import run_slam  # noqa: F401
 
 __all__ = ["__version__"]
+from . import synth  # noqa: F401,E402
