@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <future>
 #include <limits>
@@ -25,6 +26,12 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+// CPU time of the calling thread [ms] (POSIX).
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
 constexpr int kThHigh = 100;  // ORB-SLAM2's ORBmatcher::TH_HIGH
@@ -785,9 +792,9 @@ struct SlamFrontend::Impl {
     job.due_frame = frame_counter + static_cast<std::size_t>(cfg.ba_apply_lag);
     auto work = [k = k, poses = std::move(poses), fixed = std::move(fixed), pos = std::move(pos),
                  obs = job.observations, params]() {
-      const auto t0 = Clock::now();
+      const double c0 = thread_cpu_ms();
       auto r = local_bundle_adjustment(k, poses, fixed, pos, obs, params);
-      return std::make_pair(std::move(r), ms_since(t0));
+      return std::make_pair(std::move(r), thread_cpu_ms() - c0);
     };
     if (async) {
       job.result = std::async(std::launch::async, std::move(work));
@@ -828,6 +835,7 @@ struct SlamFrontend::Impl {
   // ---- per frame -----------------------------------------------------------------------------
   TrackResult track(PreparedFrame pf) {
     const auto t0 = Clock::now();
+    const double c0 = thread_cpu_ms();
     const FrameInput& in = pf.input;
     DS3D_CHECK(std::isfinite(in.timestamp), "ds3d::slam::SlamFrontend::track: timestamp must be finite (got ",
                in.timestamp, ")");
@@ -940,6 +948,7 @@ struct SlamFrontend::Impl {
     ++frame_counter;
     res.times = pf.times;
     res.times.track_ms = ms_since(t0);
+    res.times.track_cpu_ms = thread_cpu_ms() - c0;
     return res;
   }
 };
@@ -953,10 +962,12 @@ SlamFrontend& SlamFrontend::operator=(SlamFrontend&&) noexcept = default;
 
 PreparedFrame SlamFrontend::extract(FrameInput frame) const {
   const auto t0 = Clock::now();
+  const double c0 = thread_cpu_ms();
   PreparedFrame pf;
   pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera);
   pf.input = std::move(frame);
   pf.times.extract_ms = ms_since(t0);
+  pf.times.extract_cpu_ms = thread_cpu_ms() - c0;
   return pf;
 }
 
