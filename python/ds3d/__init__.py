@@ -13,5 +13,6 @@ from . import htx  # noqa: F401  (lazy: torch is imported on first use)
 from .hdbscan import HdbscanResult, hdbscan, hdbscan_precomputed  # noqa: F401
 from .slam import run_slam  # noqa: F401
 
+from . import synth  # noqa: F401
+
 __all__ = ["__version__"]
-from . import synth  # noqa: F401,E402
