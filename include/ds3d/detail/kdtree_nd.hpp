@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "ds3d/detail/parallel.hpp"
@@ -112,10 +113,201 @@ void knn_core_distances_impl(const DenseRowsNd& ds, std::size_t k, int num_threa
                   });
 }
 
+/// Up to this many points knn_core_distances uses KnnTreeSmall instead of nanoflann (measured
+/// with callgrind, see docs/hdbscan.md).
+inline constexpr std::size_t kSmallKnnMaxPoints = 4096;
+
+/// Exact kNN for small n: a median-split KD-tree over points copied in tree order, queried in
+/// leaf order. Each query first scans its own leaf (a tight bound at once), then descends from
+/// the root skipping boxes whose squared distance exceeds the current (k+1)-th smallest squared
+/// distance. Box distances are computed like sq_dist_seq on clamped coordinates, so by monotone
+/// rounding they bound every point inside from below: the result equals brute force. Ties are
+/// ordered by (distance, point id). Same contract and outputs as knn_core_distances_impl.
+template <int kDim>
+class KnnTreeSmall {
+ public:
+  explicit KnnTreeSmall(const DenseRowsNd& ds)
+      : n_(ds.n), dim_(kDim > 0 ? static_cast<std::size_t>(kDim) : ds.dim) {
+    order_.resize(n_);
+    for (std::size_t i = 0; i < n_; ++i) order_[i] = static_cast<std::uint32_t>(i);
+    nodes_.reserve(4 * (n_ / kLeafSize + 1));
+    lo_.reserve(nodes_.capacity() * dim_);
+    hi_.reserve(nodes_.capacity() * dim_);
+    build(ds.data, 0, static_cast<std::uint32_t>(n_));
+    pts_.resize(n_ * dim_);
+    for (std::size_t s = 0; s < n_; ++s) {
+      std::copy_n(ds.data + static_cast<std::size_t>(order_[s]) * dim_, dim_,
+                  pts_.data() + s * dim_);
+    }
+  }
+
+  void run(std::size_t k, int num_threads, std::vector<double>& core,
+           std::vector<std::uint32_t>* neighbors) const {
+    const std::size_t kk = k + 1;
+    core.assign(n_, 0.0);
+    if (neighbors != nullptr) neighbors->assign(n_ * kk, 0U);
+    std::vector<std::uint32_t> leaves;
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+      if (nodes_[i].left < 0) leaves.push_back(static_cast<std::uint32_t>(i));
+    }
+    parallel_chunks(
+        leaves.size(), std::size_t{16} * static_cast<std::size_t>(std::max(1, num_threads)),
+        num_threads, [&](std::size_t begin, std::size_t end, std::size_t) {
+          std::vector<double> bd(kk);
+          std::vector<std::uint32_t> bi(kk);
+          for (std::size_t li = begin; li < end; ++li) {
+            const auto leaf = leaves[li];
+            const Node& ln = nodes_[leaf];
+            for (auto s = ln.begin; s < ln.end; ++s) {
+              const std::size_t cnt = query(s, leaf, kk, bd.data(), bi.data());
+              const std::uint32_t i = order_[s];
+              core[i] = std::sqrt(bd[cnt - 1]);
+              if (neighbors != nullptr) {
+                std::copy_n(bi.data(), cnt, neighbors->data() + static_cast<std::size_t>(i) * kk);
+                for (std::size_t t = cnt; t < kk; ++t) {
+                  (*neighbors)[static_cast<std::size_t>(i) * kk + t] = bi[0];
+                }
+              }
+            }
+          }
+        });
+  }
+
+ private:
+  struct Node {
+    std::uint32_t begin, end;
+    std::int32_t left, right;  // -1 for leaves
+  };
+  static constexpr std::uint32_t kLeafSize = 16;
+
+  [[nodiscard]] std::size_t dim() const { return kDim > 0 ? static_cast<std::size_t>(kDim) : dim_; }
+
+  std::int32_t build(const double* data, std::uint32_t b, std::uint32_t e) {
+    const auto id = static_cast<std::int32_t>(nodes_.size());
+    nodes_.push_back({b, e, -1, -1});
+    const std::size_t d = dim();
+    lo_.resize(nodes_.size() * d);
+    hi_.resize(nodes_.size() * d);
+    double* lo = lo_.data() + static_cast<std::size_t>(id) * d;
+    double* hi = hi_.data() + static_cast<std::size_t>(id) * d;
+    for (std::size_t j = 0; j < d; ++j) {
+      lo[j] = data[static_cast<std::size_t>(order_[b]) * d + j];
+      hi[j] = lo[j];
+    }
+    for (auto i = b + 1; i < e; ++i) {
+      const double* p = data + static_cast<std::size_t>(order_[i]) * d;
+      for (std::size_t j = 0; j < d; ++j) {
+        lo[j] = std::min(lo[j], p[j]);
+        hi[j] = std::max(hi[j], p[j]);
+      }
+    }
+    if (e - b <= kLeafSize) return id;
+    std::size_t split = 0;
+    for (std::size_t j = 1; j < d; ++j) {
+      if (hi[j] - lo[j] > hi[split] - lo[split]) split = j;
+    }
+    if (!(hi[split] > lo[split])) return id;  // all points identical: one leaf
+    const auto mid = b + (e - b) / 2;
+    std::nth_element(order_.begin() + b, order_.begin() + mid, order_.begin() + e,
+                     [&](std::uint32_t x, std::uint32_t y) {
+                       return data[static_cast<std::size_t>(x) * d + split] <
+                              data[static_cast<std::size_t>(y) * d + split];
+                     });
+    const auto l = build(data, b, mid);
+    const auto r = build(data, mid, e);
+    nodes_[static_cast<std::size_t>(id)].left = l;
+    nodes_[static_cast<std::size_t>(id)].right = r;
+    return id;
+  }
+
+  [[nodiscard]] double box_dist2(const double* q, std::size_t node) const {
+    const std::size_t d = dim();
+    const double* lo = lo_.data() + node * d;
+    const double* hi = hi_.data() + node * d;
+    double s = 0.0;
+    for (std::size_t j = 0; j < d; ++j) {
+      const double a = lo[j] - q[j];
+      const double b = q[j] - hi[j];
+      const double g = a > 0.0 ? a : (b > 0.0 ? b : 0.0);
+      s += no_contract(g * g);
+    }
+    return s;
+  }
+
+  // k+1 nearest of tree position s (in leaf `leaf`) into bd/bi, ascending; returns the count.
+  std::size_t query(std::uint32_t s, std::uint32_t leaf, std::size_t kk, double* bd,
+                    std::uint32_t* bi) const {
+    const std::size_t d = dim();
+    const double* q = pts_.data() + static_cast<std::size_t>(s) * d;
+    std::size_t cnt = 0;
+    double worst = std::numeric_limits<double>::infinity();
+    auto scan = [&](const Node& nd) {
+      for (auto t = nd.begin; t < nd.end; ++t) {
+        const double d2 = sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(t) * d, d);
+        if (d2 > worst) continue;
+        const std::uint32_t id = order_[t];
+        if (cnt == kk && d2 == worst && id > bi[kk - 1]) continue;
+        std::size_t pos = cnt < kk ? cnt++ : kk - 1;
+        while (pos > 0 && (bd[pos - 1] > d2 || (bd[pos - 1] == d2 && bi[pos - 1] > id))) {
+          bd[pos] = bd[pos - 1];
+          bi[pos] = bi[pos - 1];
+          --pos;
+        }
+        bd[pos] = d2;
+        bi[pos] = id;
+        if (cnt == kk) worst = bd[kk - 1];
+      }
+    };
+    scan(nodes_[leaf]);
+    struct Entry {
+      std::uint32_t node;
+      double box2;
+    };
+    Entry stack[128];
+    int top = 0;
+    stack[top++] = {0, 0.0};
+    while (top > 0) {
+      const Entry en = stack[--top];
+      if (en.box2 > worst || en.node == leaf) continue;
+      const Node& nd = nodes_[en.node];
+      if (nd.left < 0) {
+        scan(nd);
+        continue;
+      }
+      const auto l = static_cast<std::uint32_t>(nd.left);
+      const auto r = static_cast<std::uint32_t>(nd.right);
+      const Entry el{l, box_dist2(q, l)};
+      const Entry er{r, box_dist2(q, r)};
+      if (el.box2 <= er.box2) {  // nearer child on top
+        if (er.box2 <= worst) stack[top++] = er;
+        if (el.box2 <= worst) stack[top++] = el;
+      } else {
+        if (el.box2 <= worst) stack[top++] = el;
+        if (er.box2 <= worst) stack[top++] = er;
+      }
+    }
+    return cnt;
+  }
+
+  std::size_t n_, dim_;
+  std::vector<std::uint32_t> order_;  // tree position -> point id
+  std::vector<double> pts_;           // coordinates in tree order
+  std::vector<Node> nodes_;
+  std::vector<double> lo_, hi_;  // node boxes
+};
+
 inline std::vector<double> knn_core_distances(const DenseRowsNd& ds, std::size_t k, int num_threads,
                                               std::vector<std::uint32_t>* neighbors = nullptr) {
   std::vector<double> core;
-  if (ds.dim == 3) {
+  if (ds.n <= kSmallKnnMaxPoints) {
+    if (ds.dim == 3) {
+      KnnTreeSmall<3>(ds).run(k, num_threads, core, neighbors);
+    } else if (ds.dim == 2) {
+      KnnTreeSmall<2>(ds).run(k, num_threads, core, neighbors);
+    } else {
+      KnnTreeSmall<-1>(ds).run(k, num_threads, core, neighbors);
+    }
+  } else if (ds.dim == 3) {
     knn_core_distances_impl<3>(ds, k, num_threads, core, neighbors);
   } else if (ds.dim == 2) {
     knn_core_distances_impl<2>(ds, k, num_threads, core, neighbors);

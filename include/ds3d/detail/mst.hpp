@@ -29,7 +29,7 @@ namespace ds3d::detail {
 
 // Prim on the implicit dense graph. The not-yet-connected points are kept in SoA arrays in
 // index order; a connected point is retired by setting its key and core to +inf (never updated
-// again, never picked) and the arrays are compacted, order-preserving, once half are retired.
+// again, never picked) and the arrays are compacted, order-preserving, once an eighth are retired.
 // Each step is one streaming pass that updates keys and finds the first minimum (branch-free,
 // SSE2 for D = 3). Keys are *squared* mutual-reachability distances max{κ_a², κ_b², d²}: squaring
 // is monotone, so no sqrt is needed in the loop; the weight of each chosen edge is then
@@ -275,7 +275,7 @@ inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::s
     s.key2[best] = inf;
     s.core2[best] = inf;
     --alive;
-    if (alive > 0 && 2 * alive < s.m) {  // order-preserving compaction
+    if (alive > 0 && 8 * alive < 7 * s.m) {  // order-preserving compaction, 1/8 retired
       std::size_t w = 0;
       for (std::size_t t = 0; t < s.m; ++t) {
         if (s.core2[t] == inf) continue;

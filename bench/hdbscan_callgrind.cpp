@@ -1,0 +1,41 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// One ds3d::hdbscan call on the benchmark data, for instruction counts that do not depend on the
+// machine load (not a Google Benchmark target; build and run commands in docs/hdbscan.md).
+// Usage: hdbscan_callgrind kp|blobs N [algo 0=auto 1=prims 2=boruvka]. Prints a hash of the
+// labels and MST weights so that two builds can be checked for bitwise-identical results.
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+
+#include "ds3d/hdbscan.hpp"
+#include "support/keypoints.hpp"
+#include "support/synthetic.hpp"
+
+int main(int argc, char** argv) {
+  if (argc < 3) {
+    std::fprintf(stderr, "usage: %s kp|blobs N [algo]\n", argv[0]);
+    return 2;
+  }
+  const std::size_t n = std::strtoul(argv[2], nullptr, 10);
+  const int algo = argc > 3 ? std::atoi(argv[3]) : 0;
+  const ds3d::RowMatrixXd x =
+      std::strcmp(argv[1], "kp") == 0
+          ? ds3d::RowMatrixXd(ds3d::test::person_keypoints(n, 42))
+          : ds3d::RowMatrixXd(ds3d::test::gaussian_blobs(n, 3, 10, 0.2, 7, 10.0, 1.0).x);
+  ds3d::HdbscanParams p;  // as bench/hdbscan_bench.cpp
+  p.min_cluster_size = 15;
+  p.min_samples = 10;
+  p.algorithm = static_cast<ds3d::MstAlgorithm>(algo);
+  const auto r = ds3d::hdbscan(x, p);
+  std::uint64_t h = 0;
+  for (const auto l : r.labels) h = h * 1000003U + static_cast<std::uint64_t>(l + 1);
+  for (const auto& e : r.min_spanning_tree) {
+    std::uint64_t b = 0;
+    std::memcpy(&b, &e.weight, sizeof b);
+    h = h * 31U + b;
+  }
+  std::printf("clusters %d hash %llx\n", r.num_clusters, static_cast<unsigned long long>(h));
+  return 0;
+}
