@@ -165,6 +165,13 @@ int main(int argc, char** argv) {
         return static_cast<double>(out.size());
       });
       row("radius R 0.05 m, k 16", a, b, c);
+      const Timed t = measure(slow_reps, [&] {
+        return static_cast<double>(
+            ds3d::remove_radius_outliers(
+                pts, {.radius = 0.05, .min_neighbors = 16, .search = ds3d::RadiusSearch::kKdTree})
+                .kept.size());
+      });
+      row("radius (ds3d kKdTree)", t, b, c);
     }
     if (wanted("plane")) {
       const Timed a = measure(slow_reps, [&] {
