@@ -11,10 +11,11 @@ namespace {
 void BM_RadiusOutlier(benchmark::State& state) {
   const ds3d::Points3f& p = ds3d::bench::room_cloud(state.range(0));
   const int threads = static_cast<int>(state.range(1));
+  const auto search = state.range(2) == 0 ? ds3d::RadiusSearch::kGrid : ds3d::RadiusSearch::kKdTree;
   std::size_t kept = 0;
   for (auto _ : state) {
     const auto r = ds3d::remove_radius_outliers(
-        p, {.radius = 0.05, .min_neighbors = 16, .num_threads = threads});
+        p, {.radius = 0.05, .min_neighbors = 16, .num_threads = threads, .search = search});
     kept = r.kept.size();
     benchmark::DoNotOptimize(r.kept.data());
   }
@@ -23,7 +24,7 @@ void BM_RadiusOutlier(benchmark::State& state) {
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * p.rows());
 }
 BENCHMARK(BM_RadiusOutlier)
-    ->ArgsProduct({{300'000, 1'000'000}, {1, 2}})
+    ->ArgsProduct({{300'000, 1'000'000}, {1, 2}, {0, 1}})  // points, threads, grid / kd-tree
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

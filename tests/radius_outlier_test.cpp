@@ -45,13 +45,17 @@ TEST(RadiusOutlier, MatchesEveryGoldenFixture) {
         if (!std::filesystem::exists(file)) continue;
         const auto golden = ds3d::test::read_indices(file);
         ASSERT_EQ(golden.size(), static_cast<std::size_t>(out.at("n_kept").as_int()));
-        for (const int threads : {1, 3}) {
-          RadiusOutlierParams p;
-          p.radius = out.at("radius").as_number();
-          p.min_neighbors = static_cast<std::uint32_t>(out.at("k").as_int());
-          p.num_threads = threads;
-          const auto r = ds3d::remove_radius_outliers(pts, p);
-          EXPECT_EQ(r.kept, golden) << file.string() << " threads " << threads;
+        for (const auto search : {ds3d::RadiusSearch::kGrid, ds3d::RadiusSearch::kKdTree}) {
+          for (const int threads : {1, 3}) {
+            RadiusOutlierParams p;
+            p.radius = out.at("radius").as_number();
+            p.min_neighbors = static_cast<std::uint32_t>(out.at("k").as_int());
+            p.num_threads = threads;
+            p.search = search;
+            const auto r = ds3d::remove_radius_outliers(pts, p);
+            EXPECT_EQ(r.kept, golden) << file.string() << " threads " << threads << " search "
+                                      << static_cast<int>(search);
+          }
         }
         ++checked;
       }
@@ -69,6 +73,35 @@ TEST(RadiusOutlier, MatchesBruteForce) {
   for (const auto& [radius, k] : {std::pair{0.05, 3U}, {0.1, 8U}, {0.2, 1U}, {0.03, 30U}}) {
     const auto r = ds3d::remove_radius_outliers(p, {.radius = radius, .min_neighbors = k});
     EXPECT_EQ(r.kept, brute_force(p, radius, k)) << "R " << radius << " k " << k;
+    const auto t = ds3d::remove_radius_outliers(
+        p, {.radius = radius, .min_neighbors = k, .search = ds3d::RadiusSearch::kKdTree});
+    EXPECT_EQ(t.kept, r.kept) << "kd-tree, R " << radius << " k " << k;
+  }
+}
+
+TEST(RadiusOutlier, KdTreeMatchesGridOnRandomClouds) {
+  ds3d::test::Rng rng(77);
+  for (int trial = 0; trial < 6; ++trial) {
+    Points3f p(4000, 3);
+    p.topRows(2500) = ds3d::test::plane_points(2500, 2.0, 0.03, rng);
+    p.bottomRows(1500) = ds3d::test::uniform_box(1500, {-2, -2, -1}, {2, 2, 1}, rng);
+    p.row(7) = p.row(8);                                            // a duplicate
+    p(11, 0) = std::numeric_limits<float>::quiet_NaN();             // a non-finite point
+    p.row(12) = p.row(13) + Eigen::RowVector3f(0.05F, 0.0F, 0.0F);  // near a tie
+    p.array() += static_cast<float>(trial) * 3.7F;                  // away from the origin
+    const double radius = 0.03 + 0.02 * trial;
+    for (const std::uint32_t k : {1U, 4U, 16U}) {
+      for (const int threads : {1, 2}) {
+        const auto g = ds3d::remove_radius_outliers(
+            p, {.radius = radius, .min_neighbors = k, .num_threads = threads});
+        const auto t = ds3d::remove_radius_outliers(p, {.radius = radius,
+                                                        .min_neighbors = k,
+                                                        .num_threads = threads,
+                                                        .search = ds3d::RadiusSearch::kKdTree});
+        EXPECT_EQ(t.kept, g.kept) << "trial " << trial << " k " << k;
+        EXPECT_EQ(t.num_non_finite, g.num_non_finite);
+      }
+    }
   }
 }
 
@@ -191,6 +224,10 @@ TYPED_TEST(RadiusOutlierTyped, SameAsBruteForce) {
   const auto r =
       ds3d::remove_radius_outliers(convert<TypeParam>(p), {.radius = 0.08, .min_neighbors = 4});
   EXPECT_EQ(r.kept, brute_force(p, 0.08, 4));
+  const auto t = ds3d::remove_radius_outliers(
+      convert<TypeParam>(p),
+      {.radius = 0.08, .min_neighbors = 4, .search = ds3d::RadiusSearch::kKdTree});
+  EXPECT_EQ(t.kept, r.kept);
 }
 
 }  // namespace

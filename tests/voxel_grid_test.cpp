@@ -173,6 +173,26 @@ TEST(VoxelGrid, SameResultForAnyThreadCount) {
   }
 }
 
+TEST(VoxelGrid, WorkspaceReuseAndMinPointsAnyThreadCount) {
+  ds3d::test::Rng rng(5);
+  const Points3f big = ds3d::test::uniform_box(30'000, {-1, -2, -1}, {2, 1, 1}, rng);
+  const Points3f small =
+      ds3d::test::uniform_box(500, {-0.2F, -0.2F, -0.2F}, {0.2F, 0.2F, 0.2F}, rng);
+  ds3d::VoxelGridWorkspace ws;
+  for (const Points3f* p : {&big, &small, &big}) {  // grow, shrink, reuse
+    const auto r1 = ds3d::voxel_grid(*p, {.leaf_size = 0.1, .min_points = 3});
+    for (const int t : {1, 2, 3}) {
+      const auto rt =
+          ds3d::voxel_grid(*p, {.leaf_size = 0.1, .min_points = 3, .num_threads = t}, ws);
+      EXPECT_EQ(rt.centroids, r1.centroids);
+      EXPECT_EQ(rt.keys, r1.keys);
+      EXPECT_EQ(rt.counts, r1.counts);
+      EXPECT_EQ(rt.representative, r1.representative);
+      EXPECT_EQ(rt.num_dropped, r1.num_dropped);
+    }
+  }
+}
+
 TEST(VoxelGrid, NonFiniteInput) {
   Points3f p(5, 3);
   const float nan = std::numeric_limits<float>::quiet_NaN();

@@ -4,6 +4,7 @@
 // thread, medians measured in the same run; prints one Markdown table with ratios and a check
 // column (voxels, kept points, inliers of the returned plane counted in double with < t).
 // Usage: compare_open3d_pcl [--sizes 300000,1000000] [--reps N] [--slow-reps N]
+//                           [--ops voxel,radius,plane]
 #include <omp.h>
 
 #include <algorithm>
@@ -80,6 +81,7 @@ int main(int argc, char** argv) {
   std::vector<std::int64_t> sizes{300'000, 1'000'000};
   int reps = 5;
   int slow_reps = 3;
+  std::string ops = "voxel,radius,plane";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "--sizes") {
@@ -94,6 +96,8 @@ int main(int argc, char** argv) {
       reps = std::stoi(argv[i + 1]);
     } else if (a == "--slow-reps") {
       slow_reps = std::stoi(argv[i + 1]);
+    } else if (a == "--ops") {
+      ops = argv[i + 1];
     }
   }
   omp_set_num_threads(1);  // single-thread comparison: Open3D's plane and radius use OpenMP
@@ -124,7 +128,9 @@ int main(int argc, char** argv) {
       std::fflush(stdout);
     };
 
+    auto wanted = [&](const char* op) { return ops.find(op) != std::string::npos; };
     for (const double leaf : {0.01, 0.05}) {
+      if (!wanted("voxel")) break;
       const Timed a = measure(reps, [&] {
         return static_cast<double>(ds3d::voxel_grid(pts, {.leaf_size = leaf}).counts.size());
       });
@@ -141,7 +147,7 @@ int main(int argc, char** argv) {
       });
       row(leaf == 0.01 ? "voxel 0.01 m" : "voxel 0.05 m", a, b, c);
     }
-    {
+    if (wanted("radius")) {
       const Timed a = measure(slow_reps, [&] {
         return static_cast<double>(
             ds3d::remove_radius_outliers(pts, {.radius = 0.05, .min_neighbors = 16}).kept.size());
@@ -159,8 +165,15 @@ int main(int argc, char** argv) {
         return static_cast<double>(out.size());
       });
       row("radius R 0.05 m, k 16", a, b, c);
+      const Timed t = measure(slow_reps, [&] {
+        return static_cast<double>(
+            ds3d::remove_radius_outliers(
+                pts, {.radius = 0.05, .min_neighbors = 16, .search = ds3d::RadiusSearch::kKdTree})
+                .kept.size());
+      });
+      row("radius (ds3d kKdTree)", t, b, c);
     }
-    {
+    if (wanted("plane")) {
       const Timed a = measure(slow_reps, [&] {
         ds3d::RansacPlaneParams p;
         p.distance_threshold = 0.01;

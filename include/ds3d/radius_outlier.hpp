@@ -22,12 +22,19 @@
 
 namespace ds3d {
 
+/// Neighbour search used by remove_radius_outliers(); both give identical kept sets.
+enum class RadiusSearch : std::uint8_t {
+  kGrid,    ///< uniform grid of cell edge R, 27 cells per query (default, faster)
+  kKdTree,  ///< nanoflann KD-tree over the cloud's traits (radius search, early exit at k)
+};
+
 /// Parameters of remove_radius_outliers().
 struct RadiusOutlierParams {
   double radius = 0.05;                        ///< search radius R [m], finite and > 0
   std::uint32_t min_neighbors = 16;            ///< k: keep iff >= k other points lie within R
   NonFinite on_non_finite = NonFinite::kSkip;  ///< kSkip: never kept, counted; kThrow: throw
   int num_threads = 1;                         ///< 0 = all hardware threads, < 0 is invalid
+  RadiusSearch search = RadiusSearch::kGrid;   ///< neighbour search (same result either way)
   /// Throws ds3d::InvalidArgument naming the bad field and value.
   void validate() const;
 };

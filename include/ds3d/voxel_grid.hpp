@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -59,6 +60,16 @@ struct VoxelGridResult {
   std::size_t num_dropped = 0;     ///< finite points in voxels below min_points
 };
 
+/// Scratch buffers of voxel_grid(). Pass the same workspace to repeated calls (one per thread)
+/// and the fast path allocates nothing but the outputs. Contents are unspecified between calls.
+struct VoxelGridWorkspace {
+  std::unique_ptr<std::uint64_t[]> words;  ///< packed keys, then (key << 32 | index) pairs
+  std::unique_ptr<std::uint64_t[]> tmp;    ///< radix-sort ping-pong buffer (not zero-filled)
+  std::size_t capacity = 0;                ///< words of each of words / tmp
+  std::vector<std::uint32_t> hist;         ///< radix histograms
+  std::vector<std::size_t> runs;           ///< per-chunk run boundaries and output offsets
+};
+
 /// Voxel-grid down-sampling: one centroid per occupied voxel of an origin-anchored grid.
 /// @param cloud  any PointCloud (see cloud.hpp); non-finite points are ignored and counted.
 /// @param params leaf sizes [m], min_points, non-finite policy and threads.
@@ -70,6 +81,12 @@ struct VoxelGridResult {
 ///       need more than 64 bits), O(n) extra memory. Identical output for every num_threads.
 template <PointCloud C>
 [[nodiscard]] VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params = {});
+
+/// As above, with caller-owned scratch buffers (no per-call allocation beyond the outputs on
+/// the fast path: every axis within ±2^20 voxels and the occupied key box within 2^32 cells).
+template <PointCloud C>
+[[nodiscard]] VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params,
+                                         VoxelGridWorkspace& workspace);
 
 /// Overload for a row-major N×3 float map (numpy float32, no copy).
 [[nodiscard]] inline VoxelGridResult voxel_grid(Eigen::Ref<const Points3f> xyz,

@@ -39,6 +39,8 @@ def test_remove_radius_outliers_matches_golden():
     r64 = ds3d.remove_radius_outliers(pts.astype(np.float64), radius=0.1, min_neighbors=5,
                                       num_threads=2)
     np.testing.assert_array_equal(r64.kept, gold)
+    kd = ds3d.remove_radius_outliers(pts, 0.1, 5, search="kdtree")
+    np.testing.assert_array_equal(kd.kept, gold)
 
 
 def test_ransac_plane_finds_the_golden_plane():
@@ -92,6 +94,8 @@ def test_bad_parameters_raise_value_error():
         ds3d.remove_radius_outliers(pts, 0.0, 3)
     with pytest.raises(ValueError, match="min_neighbors"):
         ds3d.remove_radius_outliers(pts, 0.1, -1)
+    with pytest.raises(ValueError, match="search"):
+        ds3d.remove_radius_outliers(pts, 0.1, 3, search="octree")
     with pytest.raises(ValueError, match="distance_threshold"):
         ds3d.ransac_plane(pts, -1.0)
     with pytest.raises(ValueError, match="confidence"):

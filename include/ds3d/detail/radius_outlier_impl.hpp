@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 
+#include "ds3d/detail/kdtree.hpp"
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/detail/voxel_key.hpp"
 #include "ds3d/radius_outlier.hpp"
@@ -18,6 +19,8 @@ inline void RadiusOutlierParams::validate() const {
   const char* fn = "ds3d::remove_radius_outliers";
   DS3D_CHECK(std::isfinite(radius) && radius > 0, fn, ": radius must be finite and > 0 (got ",
              radius, ")");
+  DS3D_CHECK(search == RadiusSearch::kGrid || search == RadiusSearch::kKdTree, fn,
+             ": search must be kGrid or kKdTree (got ", static_cast<int>(search), ")");
   (void)detail::resolve_num_threads(num_threads, fn);
 }
 
@@ -30,6 +33,70 @@ inline std::size_t find_cell(const VoxelSort& s, std::int64_t x, std::int64_t y,
                                   s.cell_key.begin());
 }
 
+/// RadiusSearch::kKdTree: nanoflann radius search per finite point, exact double test, early
+/// exit at k accepted neighbours.
+template <PointCloud C>
+RadiusOutlierResult radius_outliers_kdtree(const C& cloud, const RadiusOutlierParams& params,
+                                           int threads, const char* function) {
+  RadiusOutlierResult r;
+  const std::size_t n_all = cloud::size(cloud);
+  DS3D_CHECK(n_all < std::numeric_limits<std::uint32_t>::max(), function,
+             ": clouds are limited to 2^32 - 1 points (got ", n_all, ")");
+  std::vector<std::uint32_t> finite;
+  finite.reserve(n_all);
+  double max_abs = 0;
+  for (std::size_t i = 0; i < n_all; ++i) {
+    const Eigen::Vector3f p = cloud::point(cloud, i);
+    if (!cloud::is_finite(p)) {
+      DS3D_CHECK(params.on_non_finite != NonFinite::kThrow, function, ": point ", i,
+                 " is not finite (", p.x(), ", ", p.y(), ", ", p.z(), ")");
+      ++r.num_non_finite;
+      continue;
+    }
+    finite.push_back(static_cast<std::uint32_t>(i));
+    max_abs = std::max(max_abs, static_cast<double>(p.cwiseAbs().maxCoeff()));
+  }
+  if (params.min_neighbors == 0 || finite.empty()) {
+    if (params.min_neighbors == 0) r.kept = finite;
+    return r;
+  }
+  const KdTreeCloudAdaptor<C> adaptor{cloud, &finite};
+  KdTree3f<C> tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+  tree.buildIndex();
+  const double r2 = params.radius * params.radius;
+  // nanoflann prunes with float coordinate differences: widen its radius by far more than their
+  // rounding error (2^-23 relative to the coordinates), then decide each candidate exactly.
+  const double slack = params.radius * 1e-4 + max_abs * 1e-5;
+  const double search_r2 = (params.radius + slack) * (params.radius + slack);
+  const std::uint32_t k_min = params.min_neighbors;
+  std::vector<std::uint8_t> keep(finite.size(), 0);
+  parallel_chunks(finite.size(), static_cast<std::size_t>(threads) * 8, threads,
+                  [&](std::size_t b, std::size_t e, std::size_t) {
+                    for (std::size_t t = b; t < e; ++t) {
+                      const Eigen::Vector3f q = cloud::point(cloud, finite[t]);
+                      const double qx = q.x();
+                      const double qy = q.y();
+                      const double qz = q.z();
+                      auto accept = [&](std::uint32_t j) {
+                        if (j == t) return false;  // the point itself
+                        const Eigen::Vector3f p = cloud::point(cloud, finite[j]);
+                        const double dx = qx - static_cast<double>(p.x());
+                        const double dy = qy - static_cast<double>(p.y());
+                        const double dz = qz - static_cast<double>(p.z());
+                        return dx * dx + dy * dy + dz * dz <= r2;
+                      };
+                      CountingRadiusResultSet<decltype(accept)> rs(search_r2, k_min, accept);
+                      const std::array<float, 3> qv{q.x(), q.y(), q.z()};
+                      tree.findNeighbors(rs, qv.data(), nanoflann::SearchParams());
+                      keep[t] = rs.count() >= k_min ? 1 : 0;
+                    }
+                  });
+  for (std::size_t t = 0; t < finite.size(); ++t) {
+    if (keep[t] != 0) r.kept.push_back(finite[t]);
+  }
+  return r;
+}
+
 }  // namespace detail
 
 template <PointCloud C>
@@ -37,6 +104,9 @@ RadiusOutlierResult remove_radius_outliers(const C& cloud, const RadiusOutlierPa
   constexpr const char* kFn = "ds3d::remove_radius_outliers";
   params.validate();
   const int threads = detail::resolve_num_threads(params.num_threads, kFn);
+  if (params.search == RadiusSearch::kKdTree) {
+    return detail::radius_outliers_kdtree(cloud, params, threads, kFn);
+  }
   RadiusOutlierResult r;
   // Cells slightly larger than R: with |x_i - x_j| <= R, the rounded quotients x/h then differ by
   // at most 1 as long as |x/h| < 2^31 (relative rounding error 2^-52 against a 1e-6 margin), so

@@ -152,30 +152,32 @@ void build_cells(VoxelSort& s, SameCell&& same, KeyOf&& key_of) {
   s.cell_begin.push_back(static_cast<std::uint32_t>(n));
 }
 
-/// Sorts the finite points of `c` by voxel key (leaf sizes `leaf`, each > 0). The key pass runs
-/// on `num_threads`; the sort is serial and stable. Throws InvalidArgument (naming `function`) on
-/// a non-finite point under NonFinite::kThrow, a key of magnitude >= 2^62, or >= 2^32 - 1 points.
+/// Bounds and counts of a packed key pass (packed_voxel_keys).
+struct PackedKeyInfo {
+  static constexpr std::int64_t kHalf = std::int64_t{1} << 20;  // fast path: |key| < 2^20
+  std::array<std::int64_t, 3> lo{kHalf, kHalf, kHalf};          ///< per-axis minimum key
+  std::array<std::int64_t, 3> hi{-kHalf, -kHalf, -kHalf};       ///< per-axis maximum key
+  std::size_t non_finite = 0;                                   ///< points marked kNonFiniteKey
+  bool wide = false;  ///< some |key| >= 2^20: the packed words are not valid, use int64 keys
+};
+
+/// Marks a non-finite point in the packed key array.
+inline constexpr std::uint64_t kNonFiniteKey = ~std::uint64_t{0};
+
+/// One pass over the cloud: out[i] = the voxel key of point i packed as three 21-bit fields
+/// (offset 2^20, order lexicographic on (ix, iy, iz)) or kNonFiniteKey; returns the per-axis key
+/// bounds. The keys are exactly floor(v / leaf) of the spec (see fast_voxel_index). Runs on
+/// `num_threads`; throws like sort_by_voxel. `out` must hold cloud::size(c) words.
 template <PointCloud C>
-[[nodiscard]] VoxelSort sort_by_voxel(const C& c, const std::array<double, 3>& leaf,
-                                      NonFinite on_non_finite, int num_threads,
-                                      const char* function) {
+[[nodiscard]] PackedKeyInfo packed_voxel_keys(const C& c, const std::array<double, 3>& leaf,
+                                              NonFinite on_non_finite, int num_threads,
+                                              const char* function, std::uint64_t* packed) {
   const std::size_t n = cloud::size(c);
-  DS3D_CHECK(n < std::numeric_limits<std::uint32_t>::max(), function,
-             ": clouds are limited to 2^32 - 1 points (got ", n, ")");
-  constexpr std::int64_t kHalf = std::int64_t{1} << 20;  // fast path: |key| < 2^20 per axis
-  constexpr std::uint64_t kNonFinite = ~std::uint64_t{0};
+  constexpr std::int64_t kHalf = PackedKeyInfo::kHalf;
+  constexpr std::uint64_t kNonFinite = kNonFiniteKey;
   const std::array<double, 3> inv{1.0 / leaf[0], 1.0 / leaf[1], 1.0 / leaf[2]};
-  // Pass 1: key of every point, packed as three 21-bit fields (offset 2^20); per-chunk bounds.
-  std::unique_ptr<std::uint64_t[]> packed(new std::uint64_t[std::max<std::size_t>(n, 1)]);
-  struct ChunkInfo {
-    std::array<std::int64_t, 3> lo{kHalf, kHalf, kHalf};
-    std::array<std::int64_t, 3> hi{-kHalf, -kHalf, -kHalf};
-    std::size_t non_finite = 0;
-    bool wide = false;  // some |key| >= 2^20
-  };
-  const auto chunks = static_cast<std::size_t>(std::max(1, num_threads));
-  std::vector<ChunkInfo> info(chunks);
-  parallel_chunks(n, chunks, num_threads, [&](std::size_t b, std::size_t e, std::size_t ch) {
+  using ChunkInfo = PackedKeyInfo;
+  auto body = [&](std::size_t b, std::size_t e, ChunkInfo& out) {
     ChunkInfo ci;
     // Hot loop: keys of points well inside ±2^20 voxels and not within 2^-28 of a voxel
     // boundary (where x * (1/dx) and x / dx could floor differently) are computed branch-free;
@@ -232,18 +234,46 @@ template <PointCloud C>
     }
     ci.lo = {lo0, lo1, lo2};
     ci.hi = {hi0, hi1, hi2};
-    info[ch] = ci;
-  });
-  VoxelSort s;
+    out = ci;
+  };
   ChunkInfo all;
+  const auto chunks = static_cast<std::size_t>(std::max(1, num_threads));
+  if (chunks == 1) {  // no allocation on the single-thread path
+    body(0, n, all);
+    return all;
+  }
+  std::vector<ChunkInfo> info(chunks);
+  parallel_chunks(n, chunks, num_threads,
+                  [&](std::size_t b, std::size_t e, std::size_t ch) { body(b, e, info[ch]); });
   for (const auto& ci : info) {
-    s.num_non_finite += ci.non_finite;
+    all.non_finite += ci.non_finite;
     all.wide = all.wide || ci.wide;
     for (std::size_t d = 0; d < 3; ++d) {
       all.lo[d] = std::min(all.lo[d], ci.lo[d]);
       all.hi[d] = std::max(all.hi[d], ci.hi[d]);
     }
   }
+  return all;
+}
+
+/// Sorts the finite points of `c` by voxel key (leaf sizes `leaf`, each > 0). The key pass runs
+/// on `num_threads`; the sort is serial and stable. Throws InvalidArgument (naming `function`) on
+/// a non-finite point under NonFinite::kThrow, a key of magnitude >= 2^62, or >= 2^32 - 1 points.
+template <PointCloud C>
+[[nodiscard]] VoxelSort sort_by_voxel(const C& c, const std::array<double, 3>& leaf,
+                                      NonFinite on_non_finite, int num_threads,
+                                      const char* function) {
+  const std::size_t n = cloud::size(c);
+  DS3D_CHECK(n < std::numeric_limits<std::uint32_t>::max(), function,
+             ": clouds are limited to 2^32 - 1 points (got ", n, ")");
+  constexpr std::int64_t kHalf = PackedKeyInfo::kHalf;
+  constexpr std::uint64_t kNonFinite = kNonFiniteKey;
+  const std::array<double, 3> inv{1.0 / leaf[0], 1.0 / leaf[1], 1.0 / leaf[2]};
+  std::unique_ptr<std::uint64_t[]> packed(new std::uint64_t[std::max<std::size_t>(n, 1)]);
+  const PackedKeyInfo all =
+      packed_voxel_keys(c, leaf, on_non_finite, num_threads, function, packed.get());
+  VoxelSort s;
+  s.num_non_finite = all.non_finite;
   const std::size_t m = n - s.num_non_finite;
   if (m == 0) {
     s.cell_begin.push_back(0);
