@@ -11,13 +11,13 @@
 ///  2. cluster the valid ones with ds3d::hdbscan on (u, v, z) with per-dimension scales
 ///     {z̃/fx, z̃/fy, 1} (z̃ = median depth in the box): pixels become metres at the object's depth,
 ///     so the clustering is isotropic in metric space whatever the distance or the resolution;
-///  3. the foreground is the shallowest cluster among those that span a sizeable part of the box
-///     height (a detected object fills its box; furniture occluding part of it does not) and,
-///     for a 3-D box, lie in its depth range; clusters whose depth range touches the
-///     foreground's within the depth gap (plus 3σ of the sensor noise σ(z) = k·z², Khoshelham &
-///     Elberink 2012) are the same object (arms, legs split off by HDBSCAN). Those clusters are
-///     dynamic; everything else in the box (the background seen around and through the object,
-///     occluders in front of it) is kept;
+///  3. clusters are ordered by median depth and chained into depth-continuous groups (next
+///     median within the depth gap plus 3σ of the sensor noise σ(z) = k·z², Khoshelham &
+///     Elberink 2012, and within max_object_depth of the group's first): arms and legs that
+///     HDBSCAN split off join their body. The foreground is the shallowest group spanning a
+///     sizeable part of the box height (a detected object fills its box; furniture occluding
+///     part of it does not); its clusters are dynamic; everything else in the box (the
+///     background seen around and through the object, occluders in front of it) is kept;
 ///  4. noise points (label −1) are dynamic when their depth lies in the foreground's depth range
 ///     and they lie in its image rectangle (or anywhere in the box when the box has its own
 ///     depth range); keypoints without depth are dynamic when they lie in that rectangle (they
@@ -95,13 +95,14 @@ struct ImageBox {
 /// Parameters of DynamicFeatureFilter. Lengths are metric, so the same values hold for any image
 /// size, focal length and distance (the pixel → metre scale is computed per box).
 struct DynamicFilterParams {
-  float min_score = 0.3F;       ///< boxes with a lower score are ignored, in [0, 1]
-  float box_margin = 0.05F;     ///< each box grows by this fraction of its size per side, in [0, 1]
-  int min_cluster_size = 8;     ///< HDBSCAN min_cluster_size, >= 2
-  int min_samples = 4;          ///< HDBSCAN min_samples (core distance k), >= 1
-  int min_keypoints = 16;       ///< fewer depth keypoints in a box: depth-gap fallback, >= 2
-  float depth_gap = 0.3F;       ///< largest depth gap [m] within one object, > 0
-  float depth_noise = 1.5e-3F;  ///< sensor noise σ(z) = depth_noise·z² [1/m], >= 0
+  float min_score = 0.3F;    ///< boxes with a lower score are ignored, in [0, 1]
+  float box_margin = 0.05F;  ///< each box grows by this fraction of its size per side, in [0, 1]
+  int min_cluster_size = 8;  ///< HDBSCAN min_cluster_size, >= 2
+  int min_samples = 4;       ///< HDBSCAN min_samples (core distance k), >= 1
+  int min_keypoints = 16;    ///< fewer depth keypoints in a box: depth-gap fallback, >= 2
+  float depth_gap = 0.3F;    ///< largest depth gap [m] within one object, > 0
+  float max_object_depth = 1.0F;    ///< largest front-to-back extent of one object [m], > 0
+  float depth_noise = 1.5e-3F;      ///< sensor noise σ(z) = depth_noise·z² [1/m], >= 0
   float min_vertical_span = 0.35F;  ///< a foreground cluster spans at least this fraction of the
                                     ///< box height, in [0, 1]
   int carry_frames = 1;             ///< frames a dynamic region survives without a box, >= 0

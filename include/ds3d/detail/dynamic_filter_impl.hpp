@@ -28,6 +28,8 @@ inline void DynamicFilterParams::validate() const {
   DS3D_CHECK(min_keypoints >= 2, f, ": min_keypoints must be >= 2 (got ", min_keypoints, ")");
   DS3D_CHECK(std::isfinite(depth_gap) && depth_gap > 0.0F, f, ": depth_gap must be > 0 (got ",
              depth_gap, ")");
+  DS3D_CHECK(std::isfinite(max_object_depth) && max_object_depth > 0.0F, f,
+             ": max_object_depth must be > 0 (got ", max_object_depth, ")");
   DS3D_CHECK(std::isfinite(depth_noise) && depth_noise >= 0.0F, f,
              ": depth_noise must be >= 0 (got ", depth_noise, ")");
   DS3D_CHECK(
@@ -271,30 +273,51 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(Eigen::Ref<const Keypoin
         }
         std::vector<float> med(nc);
         for (std::size_t c = 0; c < nc; ++c) med[c] = detail::median_of(cz[c]);
-        // Foreground: the shallowest cluster among those spanning enough of the box height (a
-        // detected object fills its box; an occluder in front of part of it does not).
+        // Depth-continuous groups of clusters: in order of median depth, a cluster joins the
+        // current group while its median is within gap + 3σ of the previous one and within
+        // max_object_depth of the group's first. The foreground is the shallowest group that
+        // spans enough of the box height (a detected object fills its box; an occluder in front
+        // of part of it does not); if none does, the shallowest group.
+        std::vector<std::size_t> by_depth(nc);
+        std::iota(by_depth.begin(), by_depth.end(), std::size_t{0});
+        std::sort(by_depth.begin(), by_depth.end(), [&](std::size_t a, std::size_t b) {
+          return med[a] < med[b] || (med[a] == med[b] && a < b);
+        });
+        std::vector<std::pair<std::size_t, std::size_t>> groups;  // [begin, end) in by_depth
+        for (std::size_t g0 = 0; g0 < nc;) {
+          std::size_t g1 = g0 + 1;
+          while (g1 < nc &&
+                 med[by_depth[g1]] - med[by_depth[g1 - 1]] <= gap_at(med[by_depth[g1 - 1]]) &&
+                 med[by_depth[g1]] - med[by_depth[g0]] <= params_.max_object_depth) {
+            ++g1;
+          }
+          groups.emplace_back(g0, g1);
+          g0 = g1;
+        }
         const float need = params_.min_vertical_span * box.height();
-        std::size_t best = nc;
-        for (int pass = 0; pass < 2 && best == nc; ++pass) {
-          for (std::size_t c = 0; c < nc; ++c) {
-            if (pass == 0 && cr[c].v1 - cr[c].v0 < need) continue;
-            if (best == nc || med[c] < med[best]) best = c;
+        std::size_t chosen = 0;
+        for (std::size_t g = 0; g < groups.size(); ++g) {
+          float v0 = std::numeric_limits<float>::infinity();
+          float v1 = -v0;
+          for (std::size_t q = groups[g].first; q < groups[g].second; ++q) {
+            v0 = std::min(v0, cr[by_depth[q]].v0);
+            v1 = std::max(v1, cr[by_depth[q]].v1);
+          }
+          if (v1 - v0 >= need) {
+            chosen = g;
+            break;
           }
         }
-        const float lo = cr[best].z0 - gap_at(cr[best].z0);
-        const float hi = cr[best].z1 + gap_at(cr[best].z1);
         std::vector<std::uint8_t> dyn_cluster(nc, 0);
-        for (std::size_t c = 0; c < nc; ++c) {
-          // Same object: median depth within the foreground's depth range (± gap + 3σ).
-          if (c == best || (med[c] >= lo && med[c] <= hi)) {
-            dyn_cluster[c] = 1;
-            fg.u0 = std::min(fg.u0, cr[c].u0);
-            fg.u1 = std::max(fg.u1, cr[c].u1);
-            fg.v0 = std::min(fg.v0, cr[c].v0);
-            fg.v1 = std::max(fg.v1, cr[c].v1);
-            fg.z0 = std::min(fg.z0, cr[c].z0);
-            fg.z1 = std::max(fg.z1, cr[c].z1);
-          }
+        for (std::size_t q = groups[chosen].first; q < groups[chosen].second; ++q) {
+          const std::size_t c = by_depth[q];
+          dyn_cluster[c] = 1;
+          fg.u0 = std::min(fg.u0, cr[c].u0);
+          fg.u1 = std::max(fg.u1, cr[c].u1);
+          fg.v0 = std::min(fg.v0, cr[c].v0);
+          fg.v1 = std::max(fg.v1, cr[c].v1);
+          fg.z0 = std::min(fg.z0, cr[c].z0);
+          fg.z1 = std::max(fg.z1, cr[c].z1);
         }
         for (std::size_t k = 0; k < with_depth.size(); ++k) {
           if (labels[k] >= 0 && dyn_cluster[static_cast<std::size_t>(labels[k])] != 0U) {
