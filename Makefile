@@ -74,3 +74,14 @@ tidy: configure
 
 clean:
 	rm -rf $(BUILD_DIR) $(ASAN_DIR)
+
+# Side-by-side single-thread timing against Open3D and PCL (installs libopen3d-dev, libpcl-dev).
+# COMPARE_ARGS e.g. "--sizes 300000 --reps 5 --slow-reps 3".
+COMPARE_DIR  ?= build-compare
+COMPARE_ARGS ?=
+.PHONY: bench-compare
+bench-compare:
+	DS3D_EXTRA_PACKAGES="libopen3d-dev libpcl-dev" scripts/install-deps.sh
+	cmake -S bench/compare -B $(COMPARE_DIR) -G $(GENERATOR) -DCMAKE_BUILD_TYPE=Release
+	cmake --build $(COMPARE_DIR) -j $(JOBS)
+	OMP_NUM_THREADS=1 $(COMPARE_DIR)/bin/compare_open3d_pcl $(COMPARE_ARGS)

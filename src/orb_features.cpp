@@ -38,9 +38,10 @@ float ic_angle(const cv::Mat& img, int x, int y) {
   return a;
 }
 
-// FAST in every grid cell of one pyramid level; cells with no corner retry with the lower
-// threshold (ORB-SLAM2's way of keeping features in low-texture areas). Returns per-cell lists
-// sorted by response (best first), coordinates in the level's pixels.
+// FAST corners of one pyramid level bucketed on a grid; cells with no corner retry with the
+// lower threshold (ORB-SLAM2's way of keeping features in low-texture areas). One FAST pass over
+// the whole level, then per-cell passes only where needed. Returns per-cell lists sorted by
+// response (best first), coordinates in the level's pixels.
 std::vector<std::vector<cv::KeyPoint>> detect_cells(const cv::Mat& img, const OrbParams& p) {
   const int w = img.cols - 2 * kBorder;
   const int h = img.rows - 2 * kBorder;
@@ -49,19 +50,41 @@ std::vector<std::vector<cv::KeyPoint>> detect_cells(const cv::Mat& img, const Or
   const int nx = std::max(1, w / p.cell_size);
   const int ny = std::max(1, h / p.cell_size);
   cells.resize(static_cast<std::size_t>(nx * ny));
+  // Cell of a coordinate: the inverse of x0 = kBorder + cx * w / nx.
+  auto cell_of = [&](float x, float y, int* cx, int* cy) {
+    const int ix = static_cast<int>(x) - kBorder;
+    const int iy = static_cast<int>(y) - kBorder;
+    if (ix < 0 || iy < 0 || ix >= w || iy >= h) return false;
+    *cx = std::min(nx - 1, (ix * nx) / w);
+    *cy = std::min(ny - 1, (iy * ny) / h);
+    while (*cx + 1 < nx && ix >= (*cx + 1) * w / nx) ++*cx;
+    while (*cx > 0 && ix < *cx * w / nx) --*cx;
+    while (*cy + 1 < ny && iy >= (*cy + 1) * h / ny) ++*cy;
+    while (*cy > 0 && iy < *cy * h / ny) --*cy;
+    return true;
+  };
   std::vector<cv::KeyPoint> found;
+  // FAST needs a 3-pixel ring: detect inside the border grown by 3 px, keep corners inside cells.
+  const cv::Rect inner(kBorder - 3, kBorder - 3, w + 6, h + 6);
+  cv::FAST(img(inner), found, p.fast_threshold, true);
+  for (auto& k : found) {
+    k.pt.x += static_cast<float>(inner.x);
+    k.pt.y += static_cast<float>(inner.y);
+    int cx = 0;
+    int cy = 0;
+    if (cell_of(k.pt.x, k.pt.y, &cx, &cy)) cells[static_cast<std::size_t>(cy * nx + cx)].push_back(k);
+  }
   for (int cy = 0; cy < ny; ++cy) {
-    const int y0 = kBorder + cy * h / ny;
-    const int y1 = kBorder + (cy + 1) * h / ny;
     for (int cx = 0; cx < nx; ++cx) {
-      const int x0 = kBorder + cx * w / nx;
-      const int x1 = kBorder + (cx + 1) * w / nx;
-      // FAST needs a 3-pixel ring: detect on the cell grown by 3 px, keep corners inside the cell.
-      const cv::Rect roi(x0 - 3, y0 - 3, x1 - x0 + 6, y1 - y0 + 6);
       auto& cell = cells[static_cast<std::size_t>(cy * nx + cx)];
-      for (const int thr : {p.fast_threshold, p.min_fast_threshold}) {
+      if (cell.empty() && p.min_fast_threshold < p.fast_threshold) {
+        const int x0 = kBorder + cx * w / nx;
+        const int x1 = kBorder + (cx + 1) * w / nx;
+        const int y0 = kBorder + cy * h / ny;
+        const int y1 = kBorder + (cy + 1) * h / ny;
+        const cv::Rect roi(x0 - 3, y0 - 3, x1 - x0 + 6, y1 - y0 + 6);
         found.clear();
-        cv::FAST(img(roi), found, thr, true);
+        cv::FAST(img(roi), found, p.min_fast_threshold, true);
         for (auto& k : found) {
           k.pt.x += static_cast<float>(roi.x);
           k.pt.y += static_cast<float>(roi.y);
@@ -70,7 +93,6 @@ std::vector<std::vector<cv::KeyPoint>> detect_cells(const cv::Mat& img, const Or
             cell.push_back(k);
           }
         }
-        if (!cell.empty()) break;
       }
       std::stable_sort(cell.begin(), cell.end(), [](const cv::KeyPoint& a, const cv::KeyPoint& b) {
         return a.response > b.response;

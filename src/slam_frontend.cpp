@@ -228,10 +228,20 @@ struct SlamFrontend::Impl {
   }
 
   // ---- helpers -------------------------------------------------------------------------------
+  // ORB-SLAM2 counts an observation with depth twice (it constrains like a stereo pair).
+  [[nodiscard]] int obs_weight(const MapPoint& p) const {
+    int n = 0;
+    for (const auto& [kf, idx] : p.obs) {
+      n += keyframes[static_cast<std::size_t>(kf)].data.depth[static_cast<std::size_t>(idx)] > 0 ? 2 : 1;
+    }
+    return n;
+  }
+
   [[nodiscard]] Observation observation(const FrameData& f, std::size_t i) const {
     Observation o;
     o.pixel = f.uv[i].cast<double>();
     o.u_right = f.u_right(i, k.bf);
+    o.has_depth = f.depth[i] > 0;
     o.inv_sigma2 = inv_sigma2[static_cast<std::size_t>(f.octave[i])];
     return o;
   }
@@ -464,11 +474,12 @@ struct SlamFrontend::Impl {
     const Eigen::Isometry3d pred = velocity * last_T_cw;
     T_cw = pred;
     std::fill(f.points.begin(), f.points.end(), -1);
-    int n = search_by_projection(f, T_cw, cand, 7.0, false, frame_counter);
+    // ORB-SLAM2 uses a 15-pixel window for monocular and RGB-D input.
+    int n = search_by_projection(f, T_cw, cand, 15.0, false, frame_counter);
     if (n < 20) {
       std::fill(f.points.begin(), f.points.end(), -1);
       for (const int pid : cand) points[static_cast<std::size_t>(pid)].last_frame_seen = std::numeric_limits<std::size_t>::max();
-      n = search_by_projection(f, T_cw, cand, 14.0, false, frame_counter);
+      n = search_by_projection(f, T_cw, cand, 30.0, false, frame_counter);
     }
     if (n < 20) return false;
     return optimize_frame(f, T_cw) >= 10;
@@ -555,7 +566,8 @@ struct SlamFrontend::Impl {
         cand.push_back(pid);
       }
     }
-    search_by_projection(f, T_cw, cand, just_relocalized ? 3.0 : 1.0, true, stamp);
+    // ORB-SLAM2's RGB-D search radius factor: 3, or 5 right after relocalisation.
+    search_by_projection(f, T_cw, cand, just_relocalized ? 5.0 : 3.0, true, stamp);
     const int inliers = optimize_frame(f, T_cw);
     for (const int pid : f.points) {
       if (pid >= 0) ++points[static_cast<std::size_t>(pid)].found;
@@ -570,7 +582,7 @@ struct SlamFrontend::Impl {
     int ref_matches = 0;
     for (const int pid : keyframes[static_cast<std::size_t>(ref_kf)].data.points) {
       if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad &&
-          static_cast<int>(points[static_cast<std::size_t>(pid)].obs.size()) >= min_obs) {
+          obs_weight(points[static_cast<std::size_t>(pid)]) >= min_obs) {
         ++ref_matches;
       }
     }
@@ -660,14 +672,15 @@ struct SlamFrontend::Impl {
   }
 
   // ORB-SLAM2's MapPointCulling: recent points must be found in >= 25 % of the frames that
-  // should have seen them, and be observed by >= 3 keyframes once two keyframes have passed.
+  // should have seen them, and have an observation weight > 3 (two keyframes with depth) once
+  // two keyframes have passed.
   void cull_recent_points(int current_kf) {
     std::vector<int> keep;
     for (const int pid : recent_points) {
       MapPoint& p = points[static_cast<std::size_t>(pid)];
       if (p.bad) continue;
       const int age = current_kf - p.first_kf;
-      if (static_cast<double>(p.found) / p.visible < 0.25 || (age >= 2 && p.obs.size() <= 2)) {
+      if (static_cast<double>(p.found) / p.visible < 0.25 || (age >= 2 && obs_weight(p) <= 3)) {
         erase_point(pid);
       } else if (age < 3) {
         keep.push_back(pid);
@@ -711,11 +724,19 @@ struct SlamFrontend::Impl {
     std::vector<std::pair<int, int>> fixed_sorted(others.begin(), others.end());
     std::stable_sort(fixed_sorted.begin(), fixed_sorted.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
     if (static_cast<int>(fixed_sorted.size()) > cfg.max_fixed_keyframes) fixed_sorted.resize(static_cast<std::size_t>(cfg.max_fixed_keyframes));
+    std::vector<int> fixed_ids;
+    for (const auto& [id, c] : fixed_sorted) fixed_ids.push_back(id);
+    launch_ba(local, fixed_ids, pts, cfg.mapping_thread, cfg.local_ba);
+  }
 
+  // Starts a BA over `local` (optimised) and `fixed_ids` (constant) keyframes and `pts`, on the
+  // mapping thread or deferred; its result is applied ba_apply_lag frames later (or by finish()).
+  void launch_ba(const std::vector<int>& local, const std::vector<int>& fixed_ids,
+                 const std::vector<int>& pts, bool async, const LocalBaParams& params) {
     BaJob job;
     job.kf_ids = local;
     std::vector<std::uint8_t> fixed(local.size(), 0);
-    for (const auto& [id, c] : fixed_sorted) {
+    for (const int id : fixed_ids) {
       job.kf_ids.push_back(id);
       fixed.push_back(1);
     }
@@ -749,12 +770,12 @@ struct SlamFrontend::Impl {
     job.point_ids = pts;
     job.due_frame = frame_counter + static_cast<std::size_t>(cfg.ba_apply_lag);
     auto work = [k = k, poses = std::move(poses), fixed = std::move(fixed), pos = std::move(pos),
-                 obs = job.observations, params = cfg.local_ba]() {
+                 obs = job.observations, params]() {
       const auto t0 = Clock::now();
       auto r = local_bundle_adjustment(k, poses, fixed, pos, obs, params);
       return std::make_pair(std::move(r), ms_since(t0));
     };
-    if (cfg.mapping_thread) {
+    if (async) {
       job.result = std::async(std::launch::async, std::move(work));
     } else {
       job.result = std::async(std::launch::deferred, std::move(work));
@@ -954,7 +975,47 @@ TrackResult SlamFrontend::track(const cv::Mat& rgb, const cv::Mat& depth, double
   return track_prepared(std::move(pf));
 }
 
-void SlamFrontend::finish() { impl_->apply_ba_if_due(true); }
+TrackResult SlamFrontend::track(const RgbdFrame& frame) {
+  FrameInput in;
+  in.index = frame.index;
+  in.timestamp = frame.timestamp;
+  in.rgb = frame.rgb;
+  in.depth = frame.depth;
+  PreparedFrame pf = extract(std::move(in));
+  detect_dynamic(pf);
+  filter_dynamic(pf);
+  return track_prepared(std::move(pf));
+}
+
+Trajectory to_trajectory(const std::vector<FramePose>& poses) {
+  Trajectory out;
+  out.reserve(poses.size());
+  for (const auto& p : poses) {
+    TimedPose t;
+    t.timestamp = p.timestamp;
+    t.T_world_cam = p.T_world_cam;
+    out.push_back(t);
+  }
+  return out;
+}
+
+void SlamFrontend::finish() {
+  impl_->apply_ba_if_due(true);
+  if (impl_->cfg.final_global_ba && impl_->keyframes.size() >= 2) {
+    // Global BA over every keyframe and point, first keyframe fixed (the world frame).
+    std::vector<int> local;
+    for (std::size_t i = 1; i < impl_->keyframes.size(); ++i) local.push_back(static_cast<int>(i));
+    std::vector<int> pts;
+    for (std::size_t j = 0; j < impl_->points.size(); ++j) {
+      if (!impl_->points[j].bad) pts.push_back(static_cast<int>(j));
+    }
+    LocalBaParams params = impl_->cfg.local_ba;
+    params.iterations_first = std::max(params.iterations_first, 10);
+    params.iterations_second = std::max(params.iterations_second, 10);
+    impl_->launch_ba(local, {0}, pts, false, params);
+    impl_->apply_ba_if_due(true);
+  }
+}
 
 std::vector<FramePose> SlamFrontend::trajectory() const {
   std::vector<FramePose> out;

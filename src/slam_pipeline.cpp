@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // run_pipeline: the four stages of SlamFrontend in threads connected by bounded queues.
+#include <algorithm>
 #include <condition_variable>
 #include <deque>
 #include <exception>
@@ -163,6 +164,25 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
   error.rethrow();
   slam.finish();
   return results;
+}
+
+std::vector<TrackResult> run_dataset(SlamFrontend& slam, const RgbdDataset& dataset,
+                                     std::size_t max_frames,
+                                     const std::function<void(const TrackResult&)>& on_result,
+                                     const PipelineOptions& options) {
+  const std::size_t n = max_frames == 0 ? dataset.size() : std::min(max_frames, dataset.size());
+  std::size_t i = 0;
+  const auto next = [&]() -> std::optional<FrameInput> {
+    if (i >= n) return std::nullopt;
+    RgbdFrame f = dataset.frame(i++);
+    FrameInput in;
+    in.index = f.index;
+    in.timestamp = f.timestamp;
+    in.rgb = std::move(f.rgb);
+    in.depth = std::move(f.depth);
+    return in;
+  };
+  return run_pipeline(slam, next, on_result, options);
 }
 
 }  // namespace ds3d::slam

@@ -103,32 +103,34 @@ Mat attention(const Mat& q_in, const Mat& k_in, const Mat& v_in, const Attention
 float sigmoid(float x) { return 1.0F / (1.0F + std::exp(-x)); }
 
 // FPS of k indices over rows of p (spec §3.2); float32 expressions identical to ops.py.
+// Non-candidates (padding) carry distance -1 forever: min(-1, d2) = -1 never beats best_d = -1.
 std::vector<std::int32_t> farthest_point_sample(const Mat& p, Eigen::Index k, float padding_norm2) {
   const Eigen::Index n = p.rows();
   std::vector<std::int32_t> out(static_cast<std::size_t>(k), 0);
   if (n == 0 || k == 0) return out;
-  std::vector<float> dist(static_cast<std::size_t>(n), 1e10F);
-  std::vector<char> candidate(static_cast<std::size_t>(n));
+  const Eigen::ArrayXf x = p.col(0), y = p.col(1), z = p.col(2);  // structure of arrays
+  Eigen::ArrayXf dist(n);
   for (Eigen::Index j = 0; j < n; ++j) {
-    const float x = p(j, 0), y = p(j, 1), z = p(j, 2);
-    const float xx = x * x, yy = y * y, zz = z * z;
-    candidate[static_cast<std::size_t>(j)] = static_cast<char>((xx + yy) + zz > padding_norm2);
+    const float xx = x[j] * x[j], yy = y[j] * y[j], zz = z[j] * z[j];
+    dist[j] = (xx + yy) + zz > padding_norm2 ? 1e10F : -1.0F;
   }
   Eigen::Index last = 0;
+  const float* px = x.data();
+  const float* py = y.data();
+  const float* pz = z.data();
+  float* pd = dist.data();
   for (Eigen::Index i = 1; i < k; ++i) {
-    const float lx = p(last, 0), ly = p(last, 1), lz = p(last, 2);
+    const float lx = px[last], ly = py[last], lz = pz[last];
     float best_d = -1.0F;
-    Eigen::Index best = 0;
-    for (Eigen::Index j = 0; j < n; ++j) {
-      const float dx = p(j, 0) - lx, dy = p(j, 1) - ly, dz = p(j, 2) - lz;
+    for (Eigen::Index j = 0; j < n; ++j) {  // vectorisable: no branch
+      const float dx = px[j] - lx, dy = py[j] - ly, dz = pz[j] - lz;
       const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
-      const float d2 = (xx + yy) + zz;
-      float& dj = dist[static_cast<std::size_t>(j)];
-      dj = std::min(dj, d2);
-      if (candidate[static_cast<std::size_t>(j)] && dj > best_d) {
-        best_d = dj;
-        best = j;
-      }
+      pd[j] = std::min(pd[j], (xx + yy) + zz);
+      best_d = std::max(best_d, pd[j]);
+    }
+    Eigen::Index best = 0;
+    if (best_d >= 0.0F) {
+      while (pd[best] != best_d) ++best;  // lowest index holding the maximum
     }
     last = best;
     out[static_cast<std::size_t>(i)] = static_cast<std::int32_t>(best);
@@ -238,6 +240,109 @@ void DetectorConfig::validate() const {
   check(score_threshold >= 0.0F && score_threshold < 1.0F, "score_threshold", score_threshold);
   check(min_size_extent > 0.0F, "min_size_extent", min_size_extent);
   check(fps_padding_norm2 >= 0.0F, "fps_padding_norm2", fps_padding_norm2);
+}
+
+std::string DetectorConfig::to_json() const {
+  auto ints = [](const std::vector<int>& v) {
+    std::string s = "[";
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (i) s += ',';
+      s += std::to_string(v[i]);
+    }
+    s += ']';
+    return s;
+  };
+  std::string names = "[";
+  for (std::size_t i = 0; i < class_names.size(); ++i) {
+    if (i) names += ',';
+    names += '"';
+    names += detail::json_escape(class_names[i]);
+    names += '"';
+  }
+  names += "]";
+  auto num = [](float v) { return detail::json_number(static_cast<double>(v)); };
+  return "{\"profile\":\"" + detail::json_escape(profile) + "\",\"num_centres\":" + std::to_string(num_centres) +
+         ",\"sa_radius\":" + num(sa_radius) + ",\"sa_samples\":" + std::to_string(sa_samples) +
+         ",\"sa_mlp\":" + ints(sa_mlp) + ",\"d_model\":" + std::to_string(d_model) +
+         ",\"num_heads\":" + std::to_string(num_heads) + ",\"enc_layers\":" + std::to_string(enc_layers) +
+         ",\"enc_ffn\":" + std::to_string(enc_ffn) + ",\"dec_layers\":" + std::to_string(dec_layers) +
+         ",\"dec_ffn\":" + std::to_string(dec_ffn) + ",\"num_queries\":" + std::to_string(num_queries) +
+         ",\"num_classes\":" + std::to_string(num_classes) + ",\"class_names\":" + names +
+         ",\"num_angle_bins\":" + std::to_string(num_angle_bins) + ",\"head_hidden\":" + std::to_string(head_hidden) +
+         ",\"part_hidden\":" + std::to_string(part_hidden) + ",\"layer_norm_eps\":" + num(layer_norm_eps) +
+         ",\"min_points_in_box\":" + std::to_string(min_points_in_box) + ",\"nms_iou\":" + num(nms_iou) +
+         ",\"score_threshold\":" + num(score_threshold) + ",\"min_size_extent\":" + num(min_size_extent) +
+         ",\"fps_padding_norm2\":" + num(fps_padding_norm2) +
+         ",\"bn_folded\":true,\"in_proj\":\"packed_qkv\",\"format_version\":1}";
+}
+
+DetectorConfig DetectorConfig::make_profile(std::string_view name) {
+  DS3D_CHECK(name == "fast" || name == "quality",
+             "ds3d::DetectorConfig::make_profile: name must be 'fast' or 'quality' (got '", name, "')");
+  DetectorConfig c;
+  c.profile = std::string(name);
+  c.num_centres = name == "fast" ? 384 : 512;
+  c.sa_mlp = {32, 64, 128};
+  c.class_names = {"person"};
+  return c;
+}
+
+std::vector<std::pair<std::string, std::vector<std::int64_t>>> SparseDetector::expected_tensors(
+    const DetectorConfig& c) {
+  std::vector<std::pair<std::string, std::vector<std::int64_t>>> t;
+  auto lin = [&](const std::string& n, std::int64_t out, std::int64_t in) {
+    t.push_back({n + ".weight", {out, in}});
+    t.push_back({n + ".bias", {out}});
+  };
+  const std::int64_t d = c.d_model;
+  auto norm = [&](const std::string& n) {
+    t.push_back({n + ".weight", {d}});
+    t.push_back({n + ".bias", {d}});
+  };
+  auto attn = [&](const std::string& n) {
+    t.push_back({n + ".in_proj_weight", {3 * d, d}});
+    t.push_back({n + ".in_proj_bias", {3 * d}});
+    lin(n + ".out_proj", d, d);
+  };
+  std::int64_t prev = 3;
+  for (std::size_t i = 0; i < c.sa_mlp.size(); ++i) {
+    lin("pre_encoder.mlp." + std::to_string(i), c.sa_mlp[i], prev);
+    prev = c.sa_mlp[i];
+  }
+  for (int i = 0; i < c.enc_layers; ++i) {
+    const std::string p = "encoder.layers." + std::to_string(i);
+    attn(p + ".self_attn");
+    lin(p + ".linear1", c.enc_ffn, d);
+    lin(p + ".linear2", d, c.enc_ffn);
+    norm(p + ".norm1");
+    norm(p + ".norm2");
+  }
+  lin("encoder_to_decoder_projection.0", d, d);
+  lin("encoder_to_decoder_projection.1", d, d);
+  t.push_back({"pos_embedding.gauss_B", {3, d / 2}});
+  lin("query_projection.0", d, d);
+  lin("query_projection.1", d, d);
+  for (int i = 0; i < c.dec_layers; ++i) {
+    const std::string p = "decoder.layers." + std::to_string(i);
+    attn(p + ".self_attn");
+    attn(p + ".multihead_attn");
+    lin(p + ".linear1", c.dec_ffn, d);
+    lin(p + ".linear2", d, c.dec_ffn);
+    norm(p + ".norm1");
+    norm(p + ".norm2");
+    norm(p + ".norm3");
+  }
+  norm("decoder.norm");
+  const std::int64_t outs[5] = {c.num_classes + 1, 3, 3, c.num_angle_bins, c.num_angle_bins};
+  for (int k = 0; k < 5; ++k) {
+    const std::string p = std::string("mlp_heads.") + kHeadNames[k];
+    lin(p + ".0", c.head_hidden, d);
+    lin(p + ".1", c.head_hidden, c.head_hidden);
+    lin(p + ".2", outs[k], c.head_hidden);
+  }
+  lin("part_head.0", c.part_hidden, d + 3);
+  lin("part_head.1", 4, c.part_hidden);
+  return t;
 }
 
 SparseDetector SparseDetector::load(const std::filesystem::path& weights) {
@@ -355,27 +460,32 @@ DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectO
   const Eigen::Index s = c.sa_samples;
   const float r = c.sa_radius;
   const float r2 = r * r;
-  Mat grouped(t * s, 3);  // [t * s, 3] offsets / r
+  // Ball query "first s by index". Empty slots repeat the first index in the reference; a
+  // repeated row cannot change a max-pool, so only the distinct samples are pushed through the MLP.
+  std::vector<Eigen::Index> group_begin(static_cast<std::size_t>(t) + 1, 0);
+  Mat grouped(t * s, 3);  // [<= t * s, 3] offsets / r
+  Eigen::Index rows = 0;
   for (Eigen::Index i = 0; i < t; ++i) {
     const float cx = centres(i, 0), cy = centres(i, 1), cz = centres(i, 2);
     Eigen::Index found = 0;
-    Eigen::Index first = 0;
     for (Eigen::Index j = 0; j < n && found < s; ++j) {
       const float dx = cx - p(j, 0), dy = cy - p(j, 1), dz = cz - p(j, 2);
       const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
       if ((xx + yy) + zz < r2) {
-        if (found == 0) first = j;
-        grouped.row(i * s + found) = (p.row(j) - centres.row(i)) / r;
+        grouped.row(rows++) = (p.row(j) - centres.row(i)) / r;
         ++found;
       }
     }
-    for (Eigen::Index k = found; k < s; ++k) grouped.row(i * s + k) = (p.row(first) - centres.row(i)) / r;
+    group_begin[static_cast<std::size_t>(i) + 1] = rows;
   }
-  Mat x = grouped;
-  for (const auto& l : w.sa_mlp) x = linear_relu(x, l);  // [t * s, d]
+  Mat x = grouped.topRows(rows);
+  for (const auto& l : w.sa_mlp) x = linear_relu(x, l);  // [rows, d]
   const Eigen::Index d = c.d_model;
   Mat feats(t, d);  // [t, d]
-  for (Eigen::Index i = 0; i < t; ++i) feats.row(i) = x.middleRows(i * s, s).colwise().maxCoeff();
+  for (Eigen::Index i = 0; i < t; ++i) {
+    const Eigen::Index b = group_begin[static_cast<std::size_t>(i)];
+    feats.row(i) = x.middleRows(b, group_begin[static_cast<std::size_t>(i) + 1] - b).colwise().maxCoeff();
+  }
 
   // ---- encoder ----------------------------------------------------------------------------
   Mat enc = feats;

@@ -233,4 +233,60 @@ const std::string& WeightsFile::metadata(std::string_view key) const {
   return it->second;
 }
 
+std::string serialize_safetensors(const std::vector<NamedTensor>& tensors,
+                                  const std::map<std::string, std::string>& metadata) {
+  std::string header = "{";
+  bool first = true;
+  if (!metadata.empty()) {
+    header += "\"__metadata__\":{";
+    for (const auto& [k, v] : metadata) {
+      if (!first) header += ',';
+      header += '"';
+      header += detail::json_escape(k);
+      header += "\":\"";
+      header += detail::json_escape(v);
+      header += '"';
+      first = false;
+    }
+    header += "}";
+  }
+  std::size_t offset = 0;
+  std::map<std::string, int> seen;
+  for (const auto& t : tensors) {
+    std::int64_t numel = 1;
+    for (const auto s : t.shape) numel *= s;
+    DS3D_CHECK(numel >= 0 && static_cast<std::size_t>(numel) == t.data.size(), "ds3d::serialize_safetensors: tensor '",
+               t.name, "' has ", t.data.size(), " values for shape ", shape_string(t.shape));
+    DS3D_CHECK(seen.emplace(t.name, 0).second, "ds3d::serialize_safetensors: duplicate tensor '", t.name, "'");
+    std::string shape = "[";
+    for (std::size_t i = 0; i < t.shape.size(); ++i) {
+      if (i) shape += ',';
+      shape += std::to_string(t.shape[i]);
+    }
+    shape += "]";
+    const std::size_t bytes = t.data.size() * sizeof(float);
+    if (header.size() > 1) header += ',';
+    header += '"';
+    header += detail::json_escape(t.name);
+    header += "\":{\"dtype\":\"F32\",\"shape\":";
+    header += shape;
+    header += ",\"data_offsets\":[";
+    header += std::to_string(offset);
+    header += ',';
+    header += std::to_string(offset + bytes);
+    header += "]}";
+    offset += bytes;
+  }
+  header += "}";
+  while ((8 + header.size()) % 8 != 0) header += ' ';
+  std::string out(8, '\0');
+  const std::uint64_t n = header.size();
+  std::memcpy(out.data(), &n, 8);
+  out += header;
+  for (const auto& t : tensors) {
+    out.append(reinterpret_cast<const char*>(t.data.data()), t.data.size() * sizeof(float));
+  }
+  return out;
+}
+
 }  // namespace ds3d

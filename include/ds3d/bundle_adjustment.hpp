@@ -40,9 +40,10 @@ struct StereoIntrinsics {
 /// One observation of a 3-D point in an image.
 struct Observation {
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  ///< undistorted (u, v) [px]
-  double u_right = -1.0;    ///< virtual right u [px] (u − bf/z); < 0 means monocular (no depth)
+  double u_right = 0.0;     ///< virtual right u [px] (u − bf/z); used only when has_depth
+  bool has_depth = false;   ///< true: 3-DoF (u, v, u_right) observation; false: monocular (u, v)
   double inv_sigma2 = 1.0;  ///< information weight 1/σ² of the keypoint's octave, > 0
-  [[nodiscard]] bool stereo() const noexcept { return u_right >= 0.0; }
+  [[nodiscard]] bool stereo() const noexcept { return has_depth; }
 };
 
 /// Weighted reprojection residual of `p_world` seen at `obs` from pose T_cam_world, with its

@@ -12,15 +12,17 @@
 ///  2. mutual reachability d_mr(i,j) = max{κ(i), κ(j), d(i,j)} (3DS-SLAM §III-C, Eq. 4);
 ///  3. exact minimum spanning tree of the complete d_mr graph, by
 ///     - Prim on the implicit dense graph: O(n²·D) time, O(n·D) memory (small n), or
-///     - KD-tree Borůvka (McInnes & Healy 2017, §3): about O(n log n) rounds·queries for
-///       low-dimensional data, O(n·D) memory (large n);
+///     - KD-tree Borůvka (McInnes & Healy 2017, §3), seeded by the kNN lists: O(log n) rounds
+///       of pruned KD-tree searches, about O(n log² n) for low-dimensional data in practice,
+///       O(n·(D + k)) memory (large n);
 ///  4. single-linkage tree (scipy linkage layout), condensed tree, cluster stability, excess of
 ///     mass (EOM) or leaf selection, cluster_selection_epsilon, allow_single_cluster;
 ///  5. membership probabilities, GLOSH outlier scores (Campello et al. 2015) and persistence.
 ///
 /// Distances are sqrt(Σ_j (a_j − b_j)²) summed in dimension order without FMA contraction
-/// (guarded in code, independent of -ffp-contract), so core distances and MST weights match the
-/// reference bit for bit.
+/// (on FMA targets an empty asm barrier on each product keeps it apart whatever -ffp-contract
+/// says; the runtime-dispatched AVX2 kernel enables no FMA), so core distances and MST weights
+/// match the reference bit for bit. Do not build with -ffast-math.
 
 #include <Eigen/Core>
 
@@ -44,9 +46,9 @@ enum class ClusterSelection : std::uint8_t {
 /// Minimum-spanning-tree algorithm. All give the same MST weights (exact MST); under exactly
 /// equal mutual-reachability weights they may pick different (equally minimal) edges.
 enum class MstAlgorithm : std::uint8_t {
-  kAuto,     ///< Prim below 4096 points or above 8 dimensions, Borůvka otherwise
+  kAuto,     ///< Prim below 1500 points or above 8 dimensions, Borůvka otherwise
   kPrims,    ///< Prim on the implicit dense graph: O(n²·D) time, O(n·D) memory
-  kBoruvka,  ///< KD-tree Borůvka: ~O(n log² n) for low D, O(n·D) memory
+  kBoruvka,  ///< KD-tree Borůvka: ~O(n log² n) for low D, O(n·(D + k)) memory
 };
 
 /// Parameters of hdbscan(); names and defaults follow the reference library.

@@ -41,7 +41,9 @@
 #include "ds3d/bundle_adjustment.hpp"
 #include "ds3d/camera.hpp"
 #include "ds3d/cloud.hpp"
+#include "ds3d/dataset.hpp"
 #include "ds3d/orb_features.hpp"
+#include "ds3d/trajectory.hpp"
 
 namespace ds3d::slam {
 
@@ -117,6 +119,7 @@ struct FrontendConfig {
   int max_fixed_keyframes = 20;   ///< other observing keyframes held fixed in local BA, >= 1
   bool enable_local_ba = true;    ///< run local BA on every new keyframe
   bool mapping_thread = true;     ///< run local BA in its own thread (results are identical)
+  bool final_global_ba = true;    ///< finish() runs a BA over all keyframes and points (first fixed)
   int ba_apply_lag = 3;           ///< frames after a keyframe at which its BA result is applied, >= 0
   int relocalisation_candidates = 30;  ///< most recent keyframes tried when lost, >= 1
   int reanchor_after_lost = 10;   ///< consecutive lost frames after which a new map segment starts
@@ -205,6 +208,8 @@ class SlamFrontend {
   /// @throws ds3d::InvalidArgument on bad images or a timestamp earlier than the previous one.
   /// @note Never throws for lost tracking, black images or missing depth: see TrackResult::state.
   TrackResult track(const cv::Mat& rgb, const cv::Mat& depth, double timestamp);
+  /// Same for a frame read by RgbdDataset (its index and timestamp are kept).
+  TrackResult track(const RgbdFrame& frame);
 
   /// Stage 1 (thread-safe, const): validates the frame and extracts features.
   [[nodiscard]] PreparedFrame extract(FrameInput frame) const;
@@ -216,7 +221,9 @@ class SlamFrontend {
   /// @throws ds3d::InvalidArgument when the timestamp is earlier than the previous frame's.
   TrackResult track_prepared(PreparedFrame frame);
 
-  /// Waits for the mapping thread and applies any pending local BA. Call after the last frame.
+  /// Waits for the mapping thread and applies any pending local BA, then (if
+  /// config.final_global_ba) a global BA over all keyframes. Call after the last frame; trajectory()
+  /// reflects it. @note O(keyframes · points) for the global BA (about a second for 400 frames).
   void finish();
 
   /// One pose per tracked-or-not input frame, in input order. Each frame's pose is stored relative
@@ -243,6 +250,10 @@ class SlamFrontend {
   std::unique_ptr<Impl> impl_;
 };
 
+/// Drops the `tracked` flags: the poses as a ds3d::Trajectory (for write_tum_trajectory and
+/// evaluate_ate).
+[[nodiscard]] Trajectory to_trajectory(const std::vector<FramePose>& poses);
+
 /// Options of run_pipeline.
 struct PipelineOptions {
   bool threaded = true;        ///< stages in their own threads (false: all on the caller's)
@@ -264,5 +275,14 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
                                       const std::function<std::optional<FrameInput>()>& next,
                                       const std::function<void(const TrackResult&)>& on_result = {},
                                       const PipelineOptions& options = {});
+
+/// run_pipeline over the first `max_frames` frames of a dataset (images are read on the
+/// pipeline's reader thread).
+/// @param max_frames 0 = all frames
+/// @throws ds3d::IoError for unreadable images; what run_pipeline throws.
+std::vector<TrackResult> run_dataset(SlamFrontend& slam, const RgbdDataset& dataset,
+                                     std::size_t max_frames = 0,
+                                     const std::function<void(const TrackResult&)>& on_result = {},
+                                     const PipelineOptions& options = {});
 
 }  // namespace ds3d::slam

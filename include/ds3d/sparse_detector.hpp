@@ -26,6 +26,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -68,6 +69,11 @@ struct DetectorConfig {
   [[nodiscard]] static DetectorConfig from_json(std::string_view json);
   /// Throws ds3d::IoError naming the first inconsistent value.
   void validate() const;
+  /// The JSON object from_json() reads (what ds3d.htx.export writes as metadata `config`).
+  [[nodiscard]] std::string to_json() const;
+  /// Built-in profile "fast" (384 tokens) or "quality" (512 tokens), htx spec §6.2 (person-only,
+  /// K = 1). @throws ds3d::InvalidArgument for another name.
+  [[nodiscard]] static DetectorConfig make_profile(std::string_view name);
 };
 
 /// Options of SparseDetector::run().
@@ -117,6 +123,10 @@ class SparseDetector {
   /// @note O(q n + q^2); computed in double; deterministic (ties broken by lower index).
   [[nodiscard]] std::vector<std::size_t> postprocess(Eigen::Ref<const Points3f> xyz,
                                                      const std::vector<Box3>& proposals) const;
+
+  /// Every tensor name and shape a weights file for `config` must hold (no more, no fewer).
+  [[nodiscard]] static std::vector<std::pair<std::string, std::vector<std::int64_t>>> expected_tensors(
+      const DetectorConfig& config);
 
   /// The configuration read from the weights file.
   [[nodiscard]] const DetectorConfig& config() const noexcept { return config_; }

@@ -72,6 +72,19 @@ class WeightsFile {
   std::map<std::string, std::string, std::less<>> metadata_;
 };
 
+/// One float32 tensor to write.
+struct NamedTensor {
+  std::string name;
+  std::vector<std::int64_t> shape;  ///< empty for a 0-d tensor
+  std::vector<float> data;          ///< product(shape) values, C order
+};
+
+/// Serialises tensors (F32) and string metadata into the safetensors layout (header padded with
+/// spaces to 8-byte alignment), the inverse of WeightsFile::parse.
+/// @throws ds3d::InvalidArgument if a tensor's data size does not match its shape or a name repeats.
+[[nodiscard]] std::string serialize_safetensors(const std::vector<NamedTensor>& tensors,
+                                                const std::map<std::string, std::string>& metadata);
+
 /// Human-readable shape "[a, b]" (for error messages).
 [[nodiscard]] std::string shape_string(const std::vector<std::int64_t>& shape);
 

@@ -61,7 +61,7 @@ inline std::string to_string(MstAlgorithm algorithm) {
 namespace detail {
 
 /// kAuto switches from Prim to Borůvka at this many points (see docs/hdbscan.md).
-inline constexpr std::size_t kBoruvkaMinPoints = 4096;
+inline constexpr std::size_t kBoruvkaMinPoints = 1500;
 
 /// k of the core distance as the reference computes it: min_samples (or min_cluster_size),
 /// clamped to n - 1, raised to 1.
@@ -444,13 +444,17 @@ inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const Hdbscan
   const int k = detail::hdbscan_effective_k(params, n);
   res.min_samples_effective = k;
   const detail::DenseRowsNd ds{data.data(), n, dim};
-  res.core_distances = detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads);
   const bool use_boruvka =
       params.algorithm == MstAlgorithm::kBoruvka ||
       (params.algorithm == MstAlgorithm::kAuto && n >= detail::kBoruvkaMinPoints && dim <= 8);
+  std::vector<std::uint32_t> neighbors;
+  const auto k1 = static_cast<std::size_t>(k) + 1;
+  res.core_distances = detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads,
+                                                  use_boruvka ? &neighbors : nullptr);
   std::vector<MstEdge> mst =
-      use_boruvka ? detail::boruvka_kdtree(data.data(), n, dim, res.core_distances, threads)
-                  : detail::prim_dense(data.data(), n, dim, res.core_distances);
+      use_boruvka
+          ? detail::boruvka_kdtree(data.data(), n, dim, res.core_distances, neighbors, k1, threads)
+          : detail::prim_dense(data.data(), n, dim, res.core_distances);
   detail::hdbscan_from_mst(res, std::move(mst), params, n);
   return res;
 }

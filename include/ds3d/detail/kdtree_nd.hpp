@@ -20,7 +20,7 @@ namespace ds3d::detail {
 
 /// Prevents the compiler from contracting `acc + p` into an FMA with the product that made `p`.
 /// Only needed when the target has FMA (otherwise no contraction is possible); the empty asm makes
-/// `p` opaque at zero cost. Clang also honours the `fp contract(off)` pragma in the callers.
+/// `p` opaque at zero cost (GCC and Clang, x86-64 and AArch64).
 inline double no_contract(double p) {
 #if defined(__FMA__) && defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
   asm("" : "+x"(p));
@@ -71,30 +71,57 @@ struct SeqL2Nd {
   }
 };
 
-using KdTreeNd = nanoflann::KDTreeSingleIndexAdaptor<SeqL2Nd, DenseRowsNd, -1, std::uint32_t>;
+template <int kDim>
+using KdTreeNd = nanoflann::KDTreeSingleIndexAdaptor<SeqL2Nd, DenseRowsNd, kDim, std::uint32_t>;
 
-/// Distance from each point to its k-th nearest *other* point (the (k+1)-th smallest distance
-/// including the point itself), exactly as sqrt of sq_dist_seq. Requires 1 <= k < n.
-/// O(n log n) expected for low dimension; deterministic for any num_threads.
-inline std::vector<double> knn_core_distances(const DenseRowsNd& ds, std::size_t k,
-                                              int num_threads) {
-  std::vector<double> core(ds.n, 0.0);
-  KdTreeNd tree(static_cast<int>(ds.dim), ds, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+/// Core distances and neighbour lists: core[i] is the distance from i to its k-th nearest *other*
+/// point (the (k+1)-th smallest distance including the point itself), exactly
+/// sqrt(sq_dist_seq); if `neighbors` is non-null it receives the k+1 neighbour ids of each point
+/// (row-major n × (k+1), nearest first, the point itself usually first). Requires 1 <= k < n.
+/// Queries run in the tree's leaf order for cache locality. O(n log n) expected for low
+/// dimension; deterministic for any num_threads.
+template <int kDim>
+void knn_core_distances_impl(const DenseRowsNd& ds, std::size_t k, int num_threads,
+                             std::vector<double>& core, std::vector<std::uint32_t>* neighbors) {
+  core.assign(ds.n, 0.0);
+  if (neighbors != nullptr) neighbors->assign(ds.n * (k + 1), 0U);
+  KdTreeNd<kDim> tree(static_cast<int>(ds.dim), ds, nanoflann::KDTreeSingleIndexAdaptorParams(16));
   tree.buildIndex();
-  parallel_for(ds.n, num_threads, [&](std::size_t begin, std::size_t end, std::size_t) {
-    std::vector<std::uint32_t> idx(k + 1);
-    std::vector<double> d2(k + 1);
-    for (std::size_t i = begin; i < end; ++i) {
-      const std::size_t found = tree.knnSearch(ds.data + i * ds.dim, k + 1, idx.data(), d2.data());
-      // Recompute the selected squared distances exactly; the (k+1)-th value is the largest.
-      double worst = 0.0;
-      for (std::size_t t = 0; t < found; ++t) {
-        worst =
-            std::max(worst, sq_dist_seq(ds.data + i * ds.dim, ds.data + idx[t] * ds.dim, ds.dim));
-      }
-      core[i] = std::sqrt(worst);
-    }
-  });
+  const std::vector<std::uint32_t>& order = tree.vAcc;  // points grouped by leaf
+  parallel_chunks(ds.n, std::size_t{16} * static_cast<std::size_t>(std::max(1, num_threads)),
+                  num_threads, [&](std::size_t begin, std::size_t end, std::size_t) {
+                    std::vector<std::uint32_t> idx(k + 1);
+                    std::vector<double> d2(k + 1);
+                    for (std::size_t o = begin; o < end; ++o) {
+                      const std::size_t i = order[o];
+                      const double* q = ds.data + i * ds.dim;
+                      const std::size_t found = tree.knnSearch(q, k + 1, idx.data(), d2.data());
+                      // Recompute the selected squared distances exactly; the largest one is
+                      // the (k+1)-th smallest distance.
+                      double worst = 0.0;
+                      for (std::size_t t = 0; t < found; ++t) {
+                        worst = std::max(worst, sq_dist_seq(q, ds.data + idx[t] * ds.dim, ds.dim));
+                      }
+                      core[i] = std::sqrt(worst);
+                      if (neighbors != nullptr) {
+                        std::copy_n(idx.data(), found, neighbors->data() + i * (k + 1));
+                        for (std::size_t t = found; t <= k; ++t)
+                          (*neighbors)[i * (k + 1) + t] = idx[0];
+                      }
+                    }
+                  });
+}
+
+inline std::vector<double> knn_core_distances(const DenseRowsNd& ds, std::size_t k, int num_threads,
+                                              std::vector<std::uint32_t>* neighbors = nullptr) {
+  std::vector<double> core;
+  if (ds.dim == 3) {
+    knn_core_distances_impl<3>(ds, k, num_threads, core, neighbors);
+  } else if (ds.dim == 2) {
+    knn_core_distances_impl<2>(ds, k, num_threads, core, neighbors);
+  } else {
+    knn_core_distances_impl<-1>(ds, k, num_threads, core, neighbors);
+  }
   return core;
 }
 

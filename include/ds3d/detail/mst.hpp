@@ -5,7 +5,6 @@
 // d_mr(i,j) = max{core(i), core(j), d(i,j)}. Not API: see ds3d/hdbscan.hpp.
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -15,6 +14,13 @@
 #include <utility>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
+
 #include "ds3d/detail/kdtree_nd.hpp"
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/hdbscan.hpp"
@@ -22,98 +28,265 @@
 namespace ds3d::detail {
 
 // Prim on the implicit dense graph. The not-yet-connected points are kept in SoA arrays in
-// index order; a connected point is marked with key = -inf (never updated again, never picked)
-// and the arrays are compacted, order-preserving, once half of them are dead. Every step thus
-// streams over contiguous memory with a branch-free update, and ties are resolved exactly like
-// the reference (first point in index order with the strictly smallest key; keys only replaced by
-// strictly smaller ones). d(i,j) = sqrt(sq_dist_seq) exactly, so MST weights are bitwise those of
-// the reference. O(n² D) time, O(n D) memory.
-template <int kDim>
-void prim_dense_update(const std::vector<std::vector<double>>& coords, const double* c,
-                       std::size_t dim, double core_cur, const double* core, double* key,
-                       std::uint32_t* from, std::uint32_t cur, std::size_t m, double* scratch) {
-  const std::size_t d_count = kDim > 0 ? static_cast<std::size_t>(kDim) : dim;
-  for (std::size_t t = 0; t < m; ++t) scratch[t] = 0.0;
-  for (std::size_t j = 0; j < d_count; ++j) {
-    const double* x = coords[j].data();
-    const double cj = c[j];
-    for (std::size_t t = 0; t < m; ++t) {
-      const double diff = x[t] - cj;
-      scratch[t] += no_contract(diff * diff);
+// index order; a connected point is retired by setting its key and core to +inf (never updated
+// again, never picked) and the arrays are compacted, order-preserving, once half are retired.
+// Each step is one streaming pass that updates keys and finds the first minimum (branch-free,
+// SSE2 for D = 3). Keys are *squared* mutual-reachability distances max{κ_a², κ_b², d²}: squaring
+// is monotone, so no sqrt is needed in the loop; the weight of each chosen edge is then
+// recomputed exactly as max{κ_a, κ_b, sqrt(d²)} so MST weights are bitwise those of the
+// reference. Ties are resolved like the reference (first point in index order with the smallest
+// key; keys only replaced by strictly smaller ones); values that differ only after squaring's
+// rounding (≤ 1 ulp) may order differently. O(n² D) time, O(n D) memory.
+struct PrimSoA {
+  std::size_t dim = 0;
+  std::size_t m = 0;                        // slots in use
+  std::vector<std::vector<double>> coords;  // [dim][m]
+  std::vector<double> core2;                // κ² (+inf when retired)
+  std::vector<double> key2;                 // best squared d_mr so far (+inf when retired)
+  std::vector<double> from;                 // source point of key2 (exact integer as double)
+  std::vector<std::uint32_t> idx;           // point id of each slot
+};
+
+// Updates keys with the new tree point (coords c, squared core cc2, id cur) and returns the slot
+// with the first smallest key.
+inline std::size_t prim_step_generic(PrimSoA& s, const double* c, double cc2, double cur) {
+  double best = std::numeric_limits<double>::infinity();
+  std::size_t best_t = s.m;
+  for (std::size_t t = 0; t < s.m; ++t) {
+    double d2 = 0.0;
+    for (std::size_t j = 0; j < s.dim; ++j) {
+      const double diff = s.coords[j][t] - c[j];
+      d2 += no_contract(diff * diff);
+    }
+    const double lo = cc2 > s.core2[t] ? cc2 : s.core2[t];
+    const double m2 = d2 > lo ? d2 : lo;
+    const bool better = m2 < s.key2[t];
+    s.key2[t] = better ? m2 : s.key2[t];
+    s.from[t] = better ? cur : s.from[t];
+    if (s.key2[t] < best) {
+      best = s.key2[t];
+      best_t = t;
     }
   }
-  for (std::size_t t = 0; t < m; ++t) {
-    const double d = std::sqrt(scratch[t]);
-    const double lo = core_cur > core[t] ? core_cur : core[t];
-    const double mr = d > lo ? d : lo;
-    const bool better = mr < key[t];
-    key[t] = better ? mr : key[t];
-    from[t] = better ? cur : from[t];
-  }
+  return best_t;
 }
 
+#if defined(__SSE2__)
+inline __m128d no_contract_v(__m128d v) {
+#if defined(__FMA__) && defined(__GNUC__)
+  asm("" : "+x"(v));
+#endif
+  return v;
+}
+
+inline std::size_t prim_step_3d_sse2(PrimSoA& s, const double* c, double cc2, double cur) {
+  const double* x = s.coords[0].data();
+  const double* y = s.coords[1].data();
+  const double* z = s.coords[2].data();
+  double* key = s.key2.data();
+  double* from = s.from.data();
+  const double* core2 = s.core2.data();
+  const __m128d cx = _mm_set1_pd(c[0]), cy = _mm_set1_pd(c[1]), cz = _mm_set1_pd(c[2]);
+  const __m128d vcc = _mm_set1_pd(cc2), vcur = _mm_set1_pd(cur);
+  __m128d vbest = _mm_set1_pd(std::numeric_limits<double>::infinity());
+  __m128d vbest_t = _mm_set1_pd(-1.0);
+  __m128d vt = _mm_set_pd(1.0, 0.0);
+  const __m128d two = _mm_set1_pd(2.0);
+  std::size_t t = 0;
+  for (; t + 2 <= s.m; t += 2) {
+    const __m128d dx = _mm_sub_pd(_mm_loadu_pd(x + t), cx);
+    const __m128d dy = _mm_sub_pd(_mm_loadu_pd(y + t), cy);
+    const __m128d dz = _mm_sub_pd(_mm_loadu_pd(z + t), cz);
+    __m128d d2 = no_contract_v(_mm_mul_pd(dx, dx));
+    d2 = _mm_add_pd(d2, no_contract_v(_mm_mul_pd(dy, dy)));
+    d2 = _mm_add_pd(d2, no_contract_v(_mm_mul_pd(dz, dz)));
+    const __m128d lo = _mm_max_pd(_mm_loadu_pd(core2 + t), vcc);
+    const __m128d m2 = _mm_max_pd(lo, d2);
+    const __m128d k = _mm_loadu_pd(key + t);
+    const __m128d better = _mm_cmplt_pd(m2, k);
+    const __m128d nk = _mm_or_pd(_mm_and_pd(better, m2), _mm_andnot_pd(better, k));
+    _mm_storeu_pd(key + t, nk);
+    const __m128d f = _mm_loadu_pd(from + t);
+    _mm_storeu_pd(from + t, _mm_or_pd(_mm_and_pd(better, vcur), _mm_andnot_pd(better, f)));
+    const __m128d lt = _mm_cmplt_pd(nk, vbest);  // strict: keeps the first index per lane
+    vbest = _mm_or_pd(_mm_and_pd(lt, nk), _mm_andnot_pd(lt, vbest));
+    vbest_t = _mm_or_pd(_mm_and_pd(lt, vt), _mm_andnot_pd(lt, vbest_t));
+    vt = _mm_add_pd(vt, two);
+  }
+  alignas(16) double bv[2], bt[2];
+  _mm_store_pd(bv, vbest);
+  _mm_store_pd(bt, vbest_t);
+  double best = bv[0];
+  double best_t = bt[0];
+  if (bv[1] < best || (bv[1] == best && bt[1] >= 0.0 && (best_t < 0.0 || bt[1] < best_t))) {
+    best = bv[1];
+    best_t = bt[1];
+  }
+  for (; t < s.m; ++t) {  // tail
+    double d2 = 0.0;
+    for (std::size_t j = 0; j < 3; ++j) {
+      const double diff = s.coords[j][t] - c[j];
+      d2 += no_contract(diff * diff);
+    }
+    const double lo = cc2 > core2[t] ? cc2 : core2[t];
+    const double m2 = d2 > lo ? d2 : lo;
+    if (m2 < key[t]) {
+      key[t] = m2;
+      from[t] = cur;
+    }
+    if (key[t] < best) {
+      best = key[t];
+      best_t = static_cast<double>(t);
+    }
+  }
+  return best_t < 0.0 ? s.m : static_cast<std::size_t>(best_t);
+}
+#endif
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#define DS3D_HDBSCAN_AVX2 1
+// The same step with 4-wide AVX2, compiled for that target only and chosen at run time (no FMA
+// is enabled for this function, so products and sums stay separate roundings).
+__attribute__((target("avx2"))) inline std::size_t prim_step_3d_avx2(PrimSoA& s, const double* c,
+                                                                     double cc2, double cur) {
+  const double* x = s.coords[0].data();
+  const double* y = s.coords[1].data();
+  const double* z = s.coords[2].data();
+  double* key = s.key2.data();
+  double* from = s.from.data();
+  const double* core2 = s.core2.data();
+  const __m256d cx = _mm256_set1_pd(c[0]), cy = _mm256_set1_pd(c[1]), cz = _mm256_set1_pd(c[2]);
+  const __m256d vcc = _mm256_set1_pd(cc2), vcur = _mm256_set1_pd(cur);
+  __m256d vbest = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  __m256d vbest_t = _mm256_set1_pd(-1.0);
+  __m256d vt = _mm256_set_pd(3.0, 2.0, 1.0, 0.0);
+  const __m256d four = _mm256_set1_pd(4.0);
+  std::size_t t = 0;
+  for (; t + 4 <= s.m; t += 4) {
+    const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(x + t), cx);
+    const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(y + t), cy);
+    const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(z + t), cz);
+    __m256d d2 = _mm256_mul_pd(dx, dx);
+    d2 = _mm256_add_pd(d2, _mm256_mul_pd(dy, dy));
+    d2 = _mm256_add_pd(d2, _mm256_mul_pd(dz, dz));
+    const __m256d lo = _mm256_max_pd(_mm256_loadu_pd(core2 + t), vcc);
+    const __m256d m2 = _mm256_max_pd(lo, d2);
+    const __m256d k = _mm256_loadu_pd(key + t);
+    const __m256d better = _mm256_cmp_pd(m2, k, _CMP_LT_OQ);
+    const __m256d nk = _mm256_blendv_pd(k, m2, better);
+    _mm256_storeu_pd(key + t, nk);
+    _mm256_storeu_pd(from + t, _mm256_blendv_pd(_mm256_loadu_pd(from + t), vcur, better));
+    const __m256d lt = _mm256_cmp_pd(nk, vbest, _CMP_LT_OQ);  // strict: first index per lane
+    vbest = _mm256_blendv_pd(vbest, nk, lt);
+    vbest_t = _mm256_blendv_pd(vbest_t, vt, lt);
+    vt = _mm256_add_pd(vt, four);
+  }
+  alignas(32) double bv[4], bt[4];
+  _mm256_store_pd(bv, vbest);
+  _mm256_store_pd(bt, vbest_t);
+  double best = std::numeric_limits<double>::infinity();
+  double best_t = -1.0;
+  for (int l = 0; l < 4; ++l) {
+    if (bt[l] < 0.0) continue;
+    if (bv[l] < best || (bv[l] == best && bt[l] < best_t)) {
+      best = bv[l];
+      best_t = bt[l];
+    }
+  }
+  for (; t < s.m; ++t) {  // tail
+    double d2 = 0.0;
+    for (std::size_t j = 0; j < 3; ++j) {
+      const double diff = s.coords[j][t] - c[j];
+      d2 += no_contract(diff * diff);
+    }
+    const double lo = cc2 > core2[t] ? cc2 : core2[t];
+    const double m2 = d2 > lo ? d2 : lo;
+    if (m2 < key[t]) {
+      key[t] = m2;
+      from[t] = cur;
+    }
+    if (key[t] < best) {
+      best = key[t];
+      best_t = static_cast<double>(t);
+    }
+  }
+  return best_t < 0.0 ? s.m : static_cast<std::size_t>(best_t);
+}
+
+inline bool cpu_has_avx2() {
+  static const bool has = __builtin_cpu_supports("avx2") != 0;
+  return has;
+}
+#endif
+
 inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::size_t dim,
-                                       const std::vector<double>& core_in) {
+                                       const std::vector<double>& core) {
   std::vector<MstEdge> edges;
   if (n < 2) return edges;
   edges.reserve(n - 1);
-  constexpr double kDead = -std::numeric_limits<double>::infinity();
-  std::size_t m = n - 1;  // slots in use (alive + dead)
-  std::size_t alive = m;
-  std::vector<std::vector<double>> coords(dim, std::vector<double>(m));
-  std::vector<double> core(m), key(m, std::numeric_limits<double>::infinity()), scratch(m);
-  std::vector<std::uint32_t> idx(m), from(m, 0);
-  for (std::size_t t = 0; t < m; ++t) {
-    idx[t] = static_cast<std::uint32_t>(t + 1);
-    core[t] = core_in[t + 1];
-    for (std::size_t j = 0; j < dim; ++j) coords[j][t] = data[(t + 1) * dim + j];
+  const double inf = std::numeric_limits<double>::infinity();
+  PrimSoA s;
+  s.dim = dim;
+  s.m = n - 1;
+  s.coords.assign(dim, std::vector<double>(s.m));
+  s.core2.resize(s.m);
+  s.key2.assign(s.m, inf);
+  s.from.assign(s.m, 0.0);
+  s.idx.resize(s.m);
+  for (std::size_t t = 0; t < s.m; ++t) {
+    s.idx[t] = static_cast<std::uint32_t>(t + 1);
+    s.core2[t] = core[t + 1] * core[t + 1];
+    for (std::size_t j = 0; j < dim; ++j) s.coords[j][t] = data[(t + 1) * dim + j];
   }
-  std::vector<double> c(data, data + dim);
+  std::size_t alive = s.m;
   std::uint32_t cur = 0;
-  double core_cur = core_in[0];
   while (alive > 0) {
-    if (dim == 3) {
-      prim_dense_update<3>(coords, c.data(), dim, core_cur, core.data(), key.data(), from.data(),
-                           cur, m, scratch.data());
-    } else if (dim == 2) {
-      prim_dense_update<2>(coords, c.data(), dim, core_cur, core.data(), key.data(), from.data(),
-                           cur, m, scratch.data());
+    const double* c = data + static_cast<std::size_t>(cur) * dim;
+    const double cc2 = core[cur] * core[cur];
+    std::size_t best = s.m;
+#if defined(DS3D_HDBSCAN_AVX2)
+    if (dim == 3 && cpu_has_avx2()) {
+      best = prim_step_3d_avx2(s, c, cc2, static_cast<double>(cur));
+    } else if (dim == 3) {
+      best = prim_step_3d_sse2(s, c, cc2, static_cast<double>(cur));
     } else {
-      prim_dense_update<-1>(coords, c.data(), dim, core_cur, core.data(), key.data(), from.data(),
-                            cur, m, scratch.data());
+      best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
     }
-    std::size_t best = m;
-    double best_key = std::numeric_limits<double>::infinity();
-    for (std::size_t t = 0; t < m; ++t) {
-      if (key[t] < best_key && key[t] != kDead) {
-        best_key = key[t];
-        best = t;
+#elif defined(__SSE2__)
+    if (dim == 3) {
+      best = prim_step_3d_sse2(s, c, cc2, static_cast<double>(cur));
+    } else {
+      best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
+    }
+#else
+    best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
+#endif
+    if (best == s.m) {  // unreachable for finite input; keep the tree connected regardless
+      for (std::size_t t = 0; t < s.m; ++t) {
+        if (s.core2[t] != inf) best = t;
       }
     }
-    if (best == m) {  // all remaining keys are +inf: cannot happen for finite input
-      for (std::size_t t = 0; t < m; ++t) {
-        if (key[t] != kDead) best = t;
-      }
-      best_key = key[best];
-    }
-    edges.push_back({from[best], idx[best], best_key});
-    cur = idx[best];
-    core_cur = core[best];
-    for (std::size_t j = 0; j < dim; ++j) c[j] = coords[j][best];
-    key[best] = kDead;
+    const auto to = s.idx[best];
+    const auto src = static_cast<std::uint32_t>(s.from[best]);
+    const double d = std::sqrt(sq_dist_seq(data + static_cast<std::size_t>(src) * dim,
+                                           data + static_cast<std::size_t>(to) * dim, dim));
+    edges.push_back({src, to, std::max({core[src], core[to], d})});
+    cur = to;
+    s.key2[best] = inf;
+    s.core2[best] = inf;
     --alive;
-    if (alive > 0 && 2 * alive < m) {  // order-preserving compaction
+    if (alive > 0 && 2 * alive < s.m) {  // order-preserving compaction
       std::size_t w = 0;
-      for (std::size_t t = 0; t < m; ++t) {
-        if (key[t] == kDead) continue;
-        idx[w] = idx[t];
-        core[w] = core[t];
-        key[w] = key[t];
-        from[w] = from[t];
-        for (std::size_t j = 0; j < dim; ++j) coords[j][w] = coords[j][t];
+      for (std::size_t t = 0; t < s.m; ++t) {
+        if (s.core2[t] == inf) continue;
+        s.idx[w] = s.idx[t];
+        s.core2[w] = s.core2[t];
+        s.key2[w] = s.key2[t];
+        s.from[w] = s.from[t];
+        for (std::size_t j = 0; j < dim; ++j) s.coords[j][w] = s.coords[j][t];
         ++w;
       }
-      m = w;
+      s.m = w;
     }
   }
   return edges;
@@ -156,63 +329,111 @@ inline std::vector<MstEdge> prim_precomputed(const double* dist, std::size_t n,
 }
 
 // KD-tree Borůvka on the mutual-reachability graph (McInnes & Healy 2017, "Accelerated
-// Hierarchical Density Based Clustering", §3, single-tree variant). Each round every point looks
-// for its cheapest edge to another component; a KD-tree node is skipped when it lies entirely in
-// the point's component or when max{core(q), min core in node, box distance} exceeds the best
-// edge known for the point's component. Pruning is strict (">") and candidates are ordered by
-// (weight, target index), so the edge each point reports, and hence the MST, does not depend on
-// the thread schedule. Cycles among equal-weight picks are dropped by union-find, which keeps the
-// forest minimal. O(n D) memory; about O(log n) rounds of n pruned queries.
+// Hierarchical Density Based Clustering", §3, single-tree variant). Each round every point keeps
+// a candidate edge to another component: seeded from its k nearest neighbours (whose mutual
+// reachability is max{κ(q), κ(p)}; when that equals κ(q) it is provably the cheapest edge of q),
+// kept while its target stays in another component, and otherwise searched in a KD-tree that
+// skips nodes lying entirely in q's component or whose lower bound max{κ(q), min κ in node, box
+// distance} cannot beat the best known edge of q's component. The component bounds are computed
+// before the (parallel) searches and only strictly better edges are accepted, so every point's
+// result, and the MST, is independent of the thread count. Cycles among equal-weight picks are
+// dropped by union-find, which keeps the forest minimal. O(n (D + k)) memory; O(log n) rounds.
 class BoruvkaKdTree {
  public:
   BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, const std::vector<double>& core,
-                int num_threads)
+                const std::vector<std::uint32_t>& neighbors, std::size_t k1, int num_threads)
       : n_(n), dim_(dim), threads_(num_threads) {
     perm_.resize(n);
     std::iota(perm_.begin(), perm_.end(), 0U);
     pts_.resize(n * dim);
     core_.resize(n);
     build(data, core);
+    // Seed candidates from the kNN lists (in tree positions).
+    std::vector<std::uint32_t> pos(n);
+    for (std::size_t i = 0; i < n; ++i) pos[perm_[i]] = static_cast<std::uint32_t>(i);
+    cand_w_.assign(n, std::numeric_limits<double>::infinity());
+    lower_ = core_;
+    cand_t_.assign(n, 0U);
+    if (k1 > 0) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint32_t* nb = neighbors.data() + static_cast<std::size_t>(perm_[i]) * k1;
+        for (std::size_t t = 0; t < k1; ++t) {
+          const std::uint32_t j = pos[nb[t]];
+          if (j == i) continue;
+          const double w = std::max(
+              {core_[i], core_[j],
+               std::sqrt(sq_dist_seq(pts_.data() + i * dim_,
+                                     pts_.data() + static_cast<std::size_t>(j) * dim_, dim_))});
+          if (w < cand_w_[i] || (w == cand_w_[i] && j < cand_t_[i])) {
+            cand_w_[i] = w;
+            cand_t_[i] = j;
+          }
+        }
+      }
+    }
   }
 
   std::vector<MstEdge> run() {
     std::vector<MstEdge> edges;
     edges.reserve(n_ - 1);
-    // Union-find over original point ids.
     uf_parent_.resize(n_);
     std::iota(uf_parent_.begin(), uf_parent_.end(), 0U);
-    std::vector<std::uint32_t> comp(n_);  // component of tree position
-    std::vector<double> best_w(n_);
-    std::vector<std::uint32_t> best_t(n_);
+    std::vector<std::uint32_t> comp(n_);  // component (root point id) of each tree position
     std::vector<double> comp_w(n_);
-    std::vector<std::uint32_t> comp_q(n_), comp_t(n_);
+    std::vector<std::uint32_t> comp_q(n_);
+    std::vector<std::uint32_t> comp_start(n_ + 1), fill(n_), members(n_), roots;
     const double inf = std::numeric_limits<double>::infinity();
-    std::unique_ptr<std::atomic<double>[]> bound(new std::atomic<double>[n_]);
     while (edges.size() + 1 < n_) {
       for (std::size_t i = 0; i < n_; ++i) comp[i] = find(perm_[i]);
       label_nodes(comp);
-      for (std::size_t i = 0; i < n_; ++i) bound[i].store(inf, std::memory_order_relaxed);
-      comp_ = comp.data();
-      bound_ = bound.get();
-      parallel_chunks(n_, std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)),
-                      threads_, [&](std::size_t b, std::size_t e, std::size_t) {
-                        for (std::size_t i = b; i < e; ++i) query(i, best_w[i], best_t[i]);
-                      });
-      // Deterministic per-component reduction: (weight, tree position of q).
+      // Drop candidates that now point into the own component; component bounds from the rest.
       std::fill(comp_w.begin(), comp_w.end(), inf);
       for (std::size_t i = 0; i < n_; ++i) {
+        if (cand_w_[i] < inf && comp[cand_t_[i]] == comp[i]) cand_w_[i] = inf;
+        if (cand_w_[i] < comp_w[comp[i]]) {
+          comp_w[comp[i]] = cand_w_[i];
+          comp_q[comp[i]] = static_cast<std::uint32_t>(i);
+        }
+      }
+      comp_ = comp.data();
+      // Members of each component, contiguous and in tree order (counting sort). Each
+      // component is searched by one thread in this fixed order, so its running bound, and
+      // hence every result, is the same for any thread count.
+      std::fill(comp_start.begin(), comp_start.end(), 0U);
+      for (std::size_t i = 0; i < n_; ++i) ++comp_start[comp[i] + 1];
+      for (std::size_t c = 0; c < n_; ++c) comp_start[c + 1] += comp_start[c];
+      std::copy(comp_start.begin(), comp_start.end() - 1, fill.begin());
+      for (std::size_t i = 0; i < n_; ++i) members[fill[comp[i]]++] = static_cast<std::uint32_t>(i);
+      roots.clear();
+      for (std::size_t c = 0; c < n_; ++c) {
+        if (comp_start[c + 1] > comp_start[c]) roots.push_back(static_cast<std::uint32_t>(c));
+      }
+      parallel_chunks(roots.size(),
+                      std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)), threads_,
+                      [&](std::size_t b, std::size_t e, std::size_t) {
+                        for (std::size_t r = b; r < e; ++r) {
+                          const auto c = roots[r];
+                          double bound = comp_w[c];
+                          for (auto m = comp_start[c]; m < comp_start[c + 1]; ++m) {
+                            query(members[m], bound);
+                          }
+                        }
+                      });
+      // Deterministic reduction: smallest weight, then smallest tree position.
+      for (std::size_t i = 0; i < n_; ++i) {
         const auto c = comp[i];
-        if (best_w[i] < comp_w[c]) {
-          comp_w[c] = best_w[i];
+        if (cand_w_[i] < comp_w[c] ||
+            (cand_w_[i] == comp_w[c] && cand_w_[i] < inf && i < comp_q[c])) {
+          comp_w[c] = cand_w_[i];
           comp_q[c] = static_cast<std::uint32_t>(i);
-          comp_t[c] = best_t[i];
         }
       }
       std::size_t added = 0;
       for (std::size_t c = 0; c < n_; ++c) {
         if (comp_w[c] == inf) continue;
-        const std::uint32_t a = perm_[comp_q[c]];
-        const std::uint32_t b = perm_[comp_t[c]];
+        const std::uint32_t qi = comp_q[c];
+        const std::uint32_t a = perm_[qi];
+        const std::uint32_t b = perm_[cand_t_[qi]];
         const auto ra = find(a);
         const auto rb = find(b);
         if (ra == rb) continue;
@@ -322,9 +543,9 @@ class BoruvkaKdTree {
     }
   }
 
-  // Lower bound of the Euclidean distance from q to node k's box (monotone rounding makes it a
-  // true lower bound of the computed point distances).
-  [[nodiscard]] double box_dist(const double* q, std::size_t k) const {
+  // Squared distance from q to node k's box: a lower bound of every computed sq_dist_seq to its
+  // points, because each rounding step is monotone.
+  [[nodiscard]] double box_dist2(const double* q, std::size_t k) const {
     const double* lo = lo_.data() + k * dim_;
     const double* hi = hi_.data() + k * dim_;
     double s = 0.0;
@@ -334,66 +555,84 @@ class BoruvkaKdTree {
       const double d = a > 0.0 ? a : (b > 0.0 ? b : 0.0);
       s += no_contract(d * d);
     }
-    return std::sqrt(s);
+    return s;
   }
 
-  static void atomic_min(std::atomic<double>& a, double v) {
-    double cur = a.load(std::memory_order_relaxed);
-    while (v < cur && !a.compare_exchange_weak(cur, v, std::memory_order_relaxed)) {
-    }
-  }
-
-  void query(std::size_t qi, double& out_w, std::uint32_t& out_t) const {
+  // Improves point qi's candidate edge given `comp_bound`, the best edge weight known for its
+  // component (tightened in place). Only strictly better edges are accepted.
+  void query(std::size_t qi, double& comp_bound) {
     const std::uint32_t cq = comp_[qi];
     const double cqore = core_[qi];
-    out_w = std::numeric_limits<double>::infinity();
-    out_t = 0;
-    std::atomic<double>& cb = bound_[cq];
-    if (cqore > cb.load(std::memory_order_relaxed)) return;
+    const double own = cand_w_[qi];
+    if (own == cqore) return;  // κ(q) is a lower bound of every edge of q: optimal already
+    // lower_[qi] bounds q's cheapest edge to another component from below; it stays valid
+    // across rounds because merging only removes candidates.
+    if (lower_[qi] >= comp_bound) return;
+    const double bound0 = std::min(own, comp_bound);
+    if (cqore >= bound0) return;  // cannot beat the component's best edge
     const double* q = pts_.data() + qi * dim_;
-    double best_w = std::numeric_limits<double>::infinity();
-    std::uint32_t best_t = 0;
-    // Explicit stack of (node, lower bound).
-    std::pair<std::int32_t, double> stack[128];
+    double bound = bound0;
+    std::uint32_t best_t = cand_t_[qi];
+    bool improved = false;
+    // Squared-space pruning without sqrt: any d² above hi2 = bound²·(1 + 1e-14) has
+    // sqrt(d²) > bound even after rounding, so it cannot give a better edge; values at or
+    // below hi2 are decided exactly with sqrt.
+    auto hi2_of = [](double b) { return b * b * (1.0 + 1e-14); };
+    double hi2 = hi2_of(bound);
+    struct Entry {
+      std::int32_t node;
+      double lbc;   // max{κ(q), min κ in node}
+      double box2;  // squared distance from q to the node's box (lower bound of d²)
+    };
+    Entry stack[128];
     int top = 0;
-    stack[top++] = {0, std::max(cqore, nodes_[0].min_core)};
+    stack[top++] = {0, std::max(cqore, nodes_[0].min_core), 0.0};
     while (top > 0) {
-      const auto [k, lb] = stack[--top];
-      const double bound = std::min(best_w, cb.load(std::memory_order_relaxed));
-      if (lb > bound) continue;
-      const Node& nd = nodes_[static_cast<std::size_t>(k)];
+      const Entry en = stack[--top];
+      if (en.lbc >= bound || en.box2 > hi2) continue;
+      const Node& nd = nodes_[static_cast<std::size_t>(en.node)];
       if (nd.comp == cq) continue;
       if (nd.left < 0) {
         for (auto i = nd.begin; i < nd.end; ++i) {
           if (comp_[i] == cq) continue;
           const double lo = cqore > core_[i] ? cqore : core_[i];
-          if (lo > best_w) continue;
-          const double d =
-              std::sqrt(sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_));
+          if (lo >= bound) continue;
+          const double d2 = sq_dist_seq(q, pts_.data() + static_cast<std::size_t>(i) * dim_, dim_);
+          if (d2 > hi2) continue;
+          const double d = std::sqrt(d2);
           const double mr = d > lo ? d : lo;
-          if (mr < best_w || (mr == best_w && i < best_t)) {
-            best_w = mr;
+          if (mr < bound) {
+            bound = mr;
+            hi2 = hi2_of(bound);
             best_t = i;
+            improved = true;
           }
         }
         continue;
       }
       const auto l = static_cast<std::size_t>(nd.left);
       const auto r = static_cast<std::size_t>(nd.right);
-      const double lbl = std::max({cqore, nodes_[l].min_core, box_dist(q, l)});
-      const double lbr = std::max({cqore, nodes_[r].min_core, box_dist(q, r)});
+      const Entry el{nd.left, std::max(cqore, nodes_[l].min_core), box_dist2(q, l)};
+      const Entry er{nd.right, std::max(cqore, nodes_[r].min_core), box_dist2(q, r)};
+      const bool keep_l = el.lbc < bound && el.box2 <= hi2;
+      const bool keep_r = er.lbc < bound && er.box2 <= hi2;
       // Push the farther child first so the nearer one is searched first.
-      if (lbl <= lbr) {
-        stack[top++] = {nd.right, lbr};
-        stack[top++] = {nd.left, lbl};
+      if (el.box2 <= er.box2) {
+        if (keep_r) stack[top++] = er;
+        if (keep_l) stack[top++] = el;
       } else {
-        stack[top++] = {nd.left, lbl};
-        stack[top++] = {nd.right, lbr};
+        if (keep_l) stack[top++] = el;
+        if (keep_r) stack[top++] = er;
       }
     }
-    out_w = best_w;
-    out_t = best_t;
-    if (best_w < std::numeric_limits<double>::infinity()) atomic_min(cb, best_w);
+    if (improved) {
+      cand_w_[qi] = bound;
+      cand_t_[qi] = best_t;
+      comp_bound = std::min(comp_bound, bound);
+      lower_[qi] = bound;  // exact: nothing cheaper exists
+    } else {
+      lower_[qi] = std::max(lower_[qi], bound0);  // the search proved nothing below bound0
+    }
   }
 
   std::size_t n_, dim_;
@@ -404,14 +643,18 @@ class BoruvkaKdTree {
   std::vector<Node> nodes_;
   std::vector<double> lo_, hi_;
   std::vector<std::uint32_t> uf_parent_;
+  std::vector<double> cand_w_;         // per tree position: best known edge weight
+  std::vector<double> lower_;          // ... and a lower bound of the best edge weight
+  std::vector<std::uint32_t> cand_t_;  // ... and its target (tree position)
   const std::uint32_t* comp_ = nullptr;
-  std::atomic<double>* bound_ = nullptr;
 };
 
 inline std::vector<MstEdge> boruvka_kdtree(const double* data, std::size_t n, std::size_t dim,
-                                           const std::vector<double>& core, int num_threads) {
+                                           const std::vector<double>& core,
+                                           const std::vector<std::uint32_t>& neighbors,
+                                           std::size_t k1, int num_threads) {
   if (n < 2) return {};
-  BoruvkaKdTree t(data, n, dim, core, num_threads);
+  BoruvkaKdTree t(data, n, dim, core, neighbors, k1, num_threads);
   return t.run();
 }
 

@@ -23,21 +23,11 @@ inline void RadiusOutlierParams::validate() const {
 
 namespace detail {
 
-/// Lexicographic position of key (x, y, z) among the distinct cells of `s` (lower bound).
-inline std::size_t find_cell(const SortedKeys& s, std::int64_t x, std::int64_t y, std::int64_t z) {
-  std::size_t lo = 0;
-  std::size_t hi = s.cell_begin.size() - 1;
-  while (lo < hi) {
-    const std::size_t mid = (lo + hi) / 2;
-    const std::uint32_t p = s.order[s.cell_begin[mid]];
-    const bool less = s.ix[p] != x ? s.ix[p] < x : (s.iy[p] != y ? s.iy[p] < y : s.iz[p] < z);
-    if (less) {
-      lo = mid + 1;
-    } else {
-      hi = mid;
-    }
-  }
-  return lo;
+/// Position of the first cell whose key is >= (x, y, z) (lexicographic lower bound).
+inline std::size_t find_cell(const VoxelSort& s, std::int64_t x, std::int64_t y, std::int64_t z) {
+  const std::array<std::int64_t, 3> key{x, y, z};
+  return static_cast<std::size_t>(
+      std::lower_bound(s.cell_key.begin(), s.cell_key.end(), key) - s.cell_key.begin());
 }
 
 }  // namespace detail
@@ -47,37 +37,37 @@ RadiusOutlierResult remove_radius_outliers(const C& cloud, const RadiusOutlierPa
   constexpr const char* kFn = "ds3d::remove_radius_outliers";
   params.validate();
   const int threads = detail::resolve_num_threads(params.num_threads, kFn);
-  const detail::FinitePoints f = detail::gather_finite(cloud, params.on_non_finite, kFn);
   RadiusOutlierResult r;
-  r.num_non_finite = f.num_non_finite;
-  const std::size_t n = f.size();
-  if (params.min_neighbors == 0) {
-    r.kept = f.index;
-    return r;
-  }
-  if (n == 0) return r;
-
   // Cells slightly larger than R: with |x_i - x_j| <= R, the rounded quotients x/h then differ by
   // at most 1 as long as |x/h| < 2^31 (relative rounding error 2^-52 against a 1e-6 margin), so
   // every neighbour lies in the 27 surrounding cells.
   const double h = params.radius * (1.0 + 1e-6);
-  float amax = 0.0F;
-  for (std::size_t i = 0; i < n; ++i) {
-    amax = std::max({amax, std::abs(f.x[i]), std::abs(f.y[i]), std::abs(f.z[i])});
+  const detail::VoxelSort s = detail::sort_by_voxel(cloud, {h, h, h}, params.on_non_finite, threads, kFn);
+  r.num_non_finite = s.num_non_finite;
+  const std::size_t n = s.index.size();
+  if (params.min_neighbors == 0) {
+    for (std::size_t i = 0; i < cloud::size(cloud); ++i) {
+      if (cloud::is_finite(cloud::point(cloud, i))) r.kept.push_back(static_cast<std::uint32_t>(i));
+    }
+    return r;
   }
-  DS3D_CHECK(static_cast<double>(amax) / h < 2147483648.0, kFn,
-             ": coordinate magnitude ", amax, " divided by radius ", params.radius,
-             " exceeds 2^31 grid cells");
-  const detail::SortedKeys s = detail::sort_by_voxel(f, {h, h, h}, threads, kFn);
-  const std::size_t num_cells = s.cell_begin.size() - 1;
+  if (n == 0) return r;
+  const std::size_t num_cells = s.num_cells();
+  for (const auto& ck : s.cell_key) {
+    for (const std::int64_t k : ck) {
+      DS3D_CHECK(k > -2147483648LL && k < 2147483647LL, kFn,
+                 ": the cloud spans more than 2^31 grid cells of the radius ", params.radius,
+                 " (grid index ", k, ")");
+    }
+  }
 
   // Points in cell order (SoA) so that each cell is one contiguous range.
   std::vector<float> xs(n), ys(n), zs(n);
   for (std::size_t k = 0; k < n; ++k) {
-    const std::uint32_t p = s.order[k];
-    xs[k] = f.x[p];
-    ys[k] = f.y[p];
-    zs[k] = f.z[p];
+    const Eigen::Vector3f p = cloud::point(cloud, s.index[k]);
+    xs[k] = p.x();
+    ys[k] = p.y();
+    zs[k] = p.z();
   }
   const double r2 = params.radius * params.radius;
   const std::uint32_t k_min = params.min_neighbors;
@@ -91,10 +81,9 @@ RadiusOutlierResult remove_radius_outliers(const C& cloud, const RadiusOutlierPa
         for (std::size_t c = cb; c < ce; ++c) {
           const std::uint32_t lo = s.cell_begin[c];
           const std::uint32_t hi = s.cell_begin[c + 1];
-          const std::uint32_t p0 = s.order[lo];
-          const std::int64_t cx = s.ix[p0];
-          const std::int64_t cy = s.iy[p0];
-          const std::int64_t cz = s.iz[p0];
+          const std::int64_t cx = s.cell_key[c][0];
+          const std::int64_t cy = s.cell_key[c][1];
+          const std::int64_t cz = s.cell_key[c][2];
           ranges.clear();
           ranges.push_back({lo, hi});  // own cell first: dense surfaces exit early there
           for (std::int64_t dx = -1; dx <= 1; ++dx) {
@@ -102,8 +91,8 @@ RadiusOutlierResult remove_radius_outliers(const C& cloud, const RadiusOutlierPa
               // Cells (cx+dx, cy+dy, cz-1..cz+1) are consecutive in lexicographic order.
               std::size_t q = detail::find_cell(s, cx + dx, cy + dy, cz - 1);
               for (; q < num_cells; ++q) {
-                const std::uint32_t p = s.order[s.cell_begin[q]];
-                if (s.ix[p] != cx + dx || s.iy[p] != cy + dy || s.iz[p] > cz + 1) break;
+                const auto& kq = s.cell_key[q];
+                if (kq[0] != cx + dx || kq[1] != cy + dy || kq[2] > cz + 1) break;
                 if (q != c) ranges.push_back({s.cell_begin[q], s.cell_begin[q + 1]});
               }
             }
@@ -131,10 +120,11 @@ RadiusOutlierResult remove_radius_outliers(const C& cloud, const RadiusOutlierPa
         }
       });
 
-  std::vector<std::uint8_t> keep_input(n, 0);  // by position in FinitePoints
-  for (std::size_t k = 0; k < n; ++k) keep_input[s.order[k]] = keep[k];
-  for (std::size_t i = 0; i < n; ++i) {
-    if (keep_input[i] != 0) r.kept.push_back(f.index[i]);
+  // Back to input order without a sort: a flag per input point.
+  std::vector<std::uint8_t> keep_input(cloud::size(cloud), 0);
+  for (std::size_t k = 0; k < n; ++k) keep_input[s.index[k]] = keep[k];
+  for (std::size_t i = 0; i < keep_input.size(); ++i) {
+    if (keep_input[i] != 0) r.kept.push_back(static_cast<std::uint32_t>(i));
   }
   return r;
 }

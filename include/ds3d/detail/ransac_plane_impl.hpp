@@ -10,7 +10,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "ds3d/detail/parallel.hpp"
-#include "ds3d/detail/voxel_key.hpp"
+#include "ds3d/detail/finite_points.hpp"
 #include "ds3d/ransac_plane.hpp"
 
 namespace ds3d {

@@ -86,10 +86,13 @@ DepthToPointsResult depth_to_points_impl(const T* depth, int width, int height,
   const int s = params.stride;
   const std::size_t max_points = static_cast<std::size_t>((u_end - roi.u0 + s - 1) / s) *
                                  static_cast<std::size_t>((v_end - roi.v0 + s - 1) / s);
-  std::vector<float> buf(max_points * 3);
-  std::vector<std::int32_t> pix(max_points * 2);
-  std::size_t m = 0;
+  // Written in place (sized for every visited pixel, shrunk at the end: no zero-fill, no copy).
   DepthToPointsResult r;
+  r.points.resize(static_cast<Eigen::Index>(max_points), 3);
+  r.pixels.resize(static_cast<Eigen::Index>(max_points), 2);
+  float* buf = r.points.data();
+  std::int32_t* pix = r.pixels.data();
+  std::size_t m = 0;
   const double inv_scale = 1.0 / camera.depth_scale;
   const double zmin = params.min_depth;
   const double zmax = params.max_depth;
@@ -136,8 +139,8 @@ DepthToPointsResult depth_to_points_impl(const T* depth, int width, int height,
     }
   }
   const auto rows = static_cast<Eigen::Index>(m);
-  r.points = Eigen::Map<const Points3f>(buf.data(), rows, 3);
-  r.pixels = Eigen::Map<const Pixels2i>(pix.data(), rows, 2);
+  r.points.conservativeResize(rows, 3);
+  r.pixels.conservativeResize(rows, 2);
   return r;
 }
 

@@ -158,8 +158,11 @@ inline void write_file_atomically(const std::filesystem::path& path, std::string
   DS3D_CHECK_AS(IoError, fs::is_directory(dir, ec), function, ": directory does not exist: '",
                 dir.string(), "'");
   thread_local std::mt19937_64 rng(std::random_device{}());
-  const fs::path tmp =
-      dir / ("." + path.filename().string() + ".tmp" + std::to_string(rng() % 1000000000ULL));
+  std::string name(1, '.');
+  name.append(path.filename().string());
+  name.append(".tmp");
+  name.append(std::to_string(rng() % 1000000000ULL));
+  const fs::path tmp = dir / name;
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     DS3D_CHECK_AS(IoError, out.good(), function, ": cannot create '", tmp.string(), "'");

@@ -1,15 +1,18 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
 #pragma once
-// Integer voxel keys and a key-sorted ordering of points, shared by voxel_grid (one centroid per
-// voxel) and radius_outlier (a neighbour grid with cell size R). Not API.
+// Integer voxel keys and a key-sorted ordering of a cloud's finite points, shared by voxel_grid
+// (one centroid per voxel) and radius_outlier (a neighbour grid with cell size R). Not API.
 //
-// A point's voxel is (floor(x/dx), floor(y/dy), floor(z/dz)) with the division in double (the
-// spec in tests/data/preprocess/README.md). When the occupied key ranges fit in 64 bits, the
-// three keys are packed (offset by their minima) into one uint64 whose order is lexicographic on
-// (ix, iy, iz), and sorted with a stable LSD radix sort over the used bits only; otherwise a
-// stable comparison sort on the triples is used. Stability keeps the members of each voxel in
-// input order, which makes sums (and so centroids) independent of the thread count.
+// A point's voxel is (floor(x/dx), floor(y/dy), floor(z/dz)) with a correctly rounded division
+// in double (the fixture spec). The hot loop multiplies by 1/dx instead and falls back to the
+// division only when the product lies within a few ulps of an integer, where the two could
+// disagree; the keys are therefore exactly those of the division. Keys are packed into one
+// integer whose order is lexicographic on (ix, iy, iz), and sorted with a stable LSD radix sort
+// over the used bits only: (key << 32 | index) pairs when the key needs <= 32 bits, else
+// separate 64-bit keys. Keys beyond ±2^20 per axis take a general path (int64 triples, packed
+// when they fit in 64 bits, else a comparison sort). Stability keeps each voxel's members in
+// input order, so per-voxel sums and the output do not depend on the thread count.
 
 #include <algorithm>
 #include <array>
@@ -17,6 +20,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <vector>
 
@@ -29,87 +33,43 @@ namespace ds3d::detail {
 /// Largest |key| accepted: keeps key ± 1 and max - min representable in int64.
 inline constexpr double kMaxVoxelKey = 4611686018427387904.0;  // 2^62
 
-/// Finite points of a cloud in structure-of-arrays form, with their input indices.
-struct FinitePoints {
-  std::vector<float> x, y, z;
-  std::vector<std::uint32_t> index;  ///< input row of each stored point
+/// Finite points of a cloud sorted by voxel key; cells are contiguous runs.
+struct VoxelSort {
+  std::vector<std::uint32_t> index;       ///< input indices, sorted by (key, index)
+  std::vector<std::uint32_t> cell_begin;  ///< start of each cell in `index`, then index.size()
+  std::vector<std::array<std::int64_t, 3>> cell_key;  ///< (ix, iy, iz) of each cell, ascending
   std::size_t num_non_finite = 0;
-  [[nodiscard]] std::size_t size() const { return index.size(); }
+  [[nodiscard]] std::size_t num_cells() const { return cell_key.size(); }
 };
 
-/// Copies the finite points of `c` (SoA) and counts the others; throws when `on_non_finite` is
-/// kThrow and one is found, or when the cloud has more than 2^32 - 1 points.
-template <PointCloud C>
-[[nodiscard]] FinitePoints gather_finite(const C& c, NonFinite on_non_finite,
-                                         const char* function) {
-  const std::size_t n = cloud::size(c);
-  DS3D_CHECK(n < std::numeric_limits<std::uint32_t>::max(), function,
-             ": clouds are limited to 2^32 - 1 points (got ", n, ")");
-  FinitePoints f;
-  f.x.reserve(n);
-  f.y.reserve(n);
-  f.z.reserve(n);
-  f.index.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3f p = cloud::point(c, i);
-    if (!cloud::is_finite(p)) {
-      DS3D_CHECK(on_non_finite != NonFinite::kThrow, function, ": point ", i,
-                 " is not finite (", p.x(), ", ", p.y(), ", ", p.z(), ")");
-      ++f.num_non_finite;
-      continue;
-    }
-    f.x.push_back(p.x());
-    f.y.push_back(p.y());
-    f.z.push_back(p.z());
-    f.index.push_back(static_cast<std::uint32_t>(i));
-  }
-  return f;
-}
-
-/// Voxel keys of every point of `f` and the order that sorts them lexicographically (stable).
-struct SortedKeys {
-  std::vector<std::int64_t> ix, iy, iz;  ///< key of point k of FinitePoints (unsorted)
-  std::vector<std::uint32_t> order;      ///< positions into FinitePoints, sorted by key
-  std::vector<std::uint32_t> cell_begin;  ///< start of each distinct key in `order`, + end
-};
-
-/// floor(v / leaf) as int64, checked against overflow (names `function` and the value).
-[[nodiscard]] inline std::int64_t voxel_index(float v, double leaf, const char* function,
-                                              const char* axis) {
+/// floor(v / leaf) as in the spec (double division), checked against overflow.
+[[nodiscard]] inline std::int64_t exact_voxel_index(float v, double leaf, const char* function,
+                                                    const char* axis) {
   const double q = std::floor(static_cast<double>(v) / leaf);
   DS3D_CHECK(std::abs(q) < kMaxVoxelKey, function, ": voxel index ", q, " of coordinate ", axis,
              " = ", v, " with leaf size ", leaf, " overflows the signed 64-bit key range");
   return static_cast<std::int64_t>(q);
 }
 
-/// Stable LSD radix sort of `order` by `key[order[k]]`, over the low `bits` bits of the keys.
-inline void radix_sort_by_key(const std::vector<std::uint64_t>& key,
-                              std::vector<std::uint32_t>& order, int bits) {
-  constexpr int kDigit = 11;
-  constexpr std::size_t kBuckets = std::size_t{1} << kDigit;
-  const std::size_t n = order.size();
-  std::vector<std::uint64_t> k0(n), k1(n);
-  std::vector<std::uint32_t> tmp(n);
-  for (std::size_t i = 0; i < n; ++i) k0[i] = key[order[i]];
-  std::vector<std::uint32_t> count(kBuckets);
-  for (int shift = 0; shift < bits; shift += kDigit) {
-    std::fill(count.begin(), count.end(), 0U);
-    for (std::size_t i = 0; i < n; ++i) ++count[(k0[i] >> shift) & (kBuckets - 1)];
-    std::uint32_t sum = 0;
-    for (auto& c : count) {
-      const std::uint32_t t = c;
-      c = sum;
-      sum += t;
-    }
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::size_t b = (k0[i] >> shift) & (kBuckets - 1);
-      const std::uint32_t dst = count[b]++;
-      k1[dst] = k0[i];
-      tmp[dst] = order[i];
-    }
-    k0.swap(k1);
-    order.swap(tmp);
+/// Same value as exact_voxel_index, faster: multiply by inv = 1/leaf; redo with the division
+/// when the product is within 2^-49 relative of an integer (both are within 2 ulps of the
+/// exact quotient, so elsewhere their floors agree).
+[[nodiscard]] inline std::int64_t fast_voxel_index(float v, double leaf, double inv,
+                                                   const char* function, const char* axis) {
+  const double q = static_cast<double>(v) * inv;
+  if (!(std::abs(q) < 2305843009213693952.0)) {  // 2^61, or NaN: exact path names the value
+    return exact_voxel_index(v, leaf, function, axis);
   }
+  auto t = static_cast<std::int64_t>(q);  // truncation
+  double ft = static_cast<double>(t);
+  if (q < ft) {
+    t -= 1;
+    ft -= 1.0;
+  }
+  const double frac = q - ft;  // exact, in [0, 1]
+  const double tol = std::abs(q) * 0x1p-49 + 0x1p-60;
+  if (frac <= tol || frac >= 1.0 - tol) return exact_voxel_index(v, leaf, function, axis);
+  return t;
 }
 
 /// Number of bits needed to store values in [0, range].
@@ -119,101 +79,247 @@ inline void radix_sort_by_key(const std::vector<std::uint64_t>& key,
   return b;
 }
 
-/// Computes the voxel key of each point of `f` (leaf sizes `leaf`, > 0) and sorts them.
-/// Key computation runs on `num_threads`; the sort is serial and stable (deterministic).
-[[nodiscard]] inline SortedKeys sort_by_voxel(const FinitePoints& f, const std::array<double, 3>& leaf,
-                                              int num_threads, const char* function) {
-  const std::size_t n = f.size();
-  SortedKeys s;
-  s.ix.resize(n);
-  s.iy.resize(n);
-  s.iz.resize(n);
-  const std::size_t chunks = static_cast<std::size_t>(std::max(1, num_threads));
-  std::vector<std::array<std::int64_t, 6>> bounds(chunks);
-  parallel_chunks(n, chunks, num_threads, [&](std::size_t b, std::size_t e, std::size_t c) {
-    std::array<std::int64_t, 6> bb{std::numeric_limits<std::int64_t>::max(),
-                                   std::numeric_limits<std::int64_t>::max(),
-                                   std::numeric_limits<std::int64_t>::max(),
-                                   std::numeric_limits<std::int64_t>::min(),
-                                   std::numeric_limits<std::int64_t>::min(),
-                                   std::numeric_limits<std::int64_t>::min()};
-    const double lx = leaf[0];
-    const double ly = leaf[1];
-    const double lz = leaf[2];
-    for (std::size_t i = b; i < e; ++i) {
-      const double qx = std::floor(static_cast<double>(f.x[i]) / lx);
-      const double qy = std::floor(static_cast<double>(f.y[i]) / ly);
-      const double qz = std::floor(static_cast<double>(f.z[i]) / lz);
-      if (!(std::abs(qx) < kMaxVoxelKey && std::abs(qy) < kMaxVoxelKey &&
-            std::abs(qz) < kMaxVoxelKey)) {
-        // Slow path only to build the message naming the offending value.
-        (void)voxel_index(f.x[i], lx, function, "x");
-        (void)voxel_index(f.y[i], ly, function, "y");
-        (void)voxel_index(f.z[i], lz, function, "z");
-      }
-      const auto kx = static_cast<std::int64_t>(qx);
-      const auto ky = static_cast<std::int64_t>(qy);
-      const auto kz = static_cast<std::int64_t>(qz);
-      s.ix[i] = kx;
-      s.iy[i] = ky;
-      s.iz[i] = kz;
-      bb[0] = std::min(bb[0], kx);
-      bb[1] = std::min(bb[1], ky);
-      bb[2] = std::min(bb[2], kz);
-      bb[3] = std::max(bb[3], kx);
-      bb[4] = std::max(bb[4], ky);
-      bb[5] = std::max(bb[5], kz);
-    }
-    bounds[c] = bb;
-  });
-  s.order.resize(n);
-  std::iota(s.order.begin(), s.order.end(), 0U);
-  if (n == 0) {
-    s.cell_begin.push_back(0);
-    return s;
-  }
-  std::array<std::int64_t, 6> bb = bounds[0];
-  for (const auto& o : bounds) {
-    for (int d = 0; d < 3; ++d) {
-      bb[static_cast<std::size_t>(d)] = std::min(bb[static_cast<std::size_t>(d)], o[static_cast<std::size_t>(d)]);
-      bb[static_cast<std::size_t>(d + 3)] =
-          std::max(bb[static_cast<std::size_t>(d + 3)], o[static_cast<std::size_t>(d + 3)]);
+/// Stable LSD radix sort of 64-bit words by their bits [lo, lo + bits).
+inline void radix_sort_words(std::vector<std::uint64_t>& a, int lo, int bits) {
+  if (bits <= 0 || a.size() < 2) return;
+  const int passes = (bits + 10) / 11;
+  const int digit = (bits + passes - 1) / passes;
+  const std::size_t buckets = std::size_t{1} << digit;
+  const std::uint64_t mask = buckets - 1;
+  std::vector<std::uint64_t> tmp(a.size());
+  std::vector<std::uint32_t> count(buckets * static_cast<std::size_t>(passes), 0U);
+  for (const std::uint64_t w : a) {  // all histograms in one read
+    for (int p = 0; p < passes; ++p) {
+      ++count[static_cast<std::size_t>(p) * buckets + ((w >> (lo + p * digit)) & mask)];
     }
   }
-  const auto rx = static_cast<std::uint64_t>(bb[3] - bb[0]);
-  const auto ry = static_cast<std::uint64_t>(bb[4] - bb[1]);
-  const auto rz = static_cast<std::uint64_t>(bb[5] - bb[2]);
-  const int bx = bits_for(rx);
-  const int by = bits_for(ry);
-  const int bz = bits_for(rz);
-  if (bx + by + bz <= 64) {
-    std::vector<std::uint64_t> packed(n);
-    const auto shift_x = static_cast<unsigned>(by + bz);
-    const auto shift_y = static_cast<unsigned>(bz);
+  for (int p = 0; p < passes; ++p) {
+    std::uint32_t* c = count.data() + static_cast<std::size_t>(p) * buckets;
+    std::uint32_t sum = 0;
+    for (std::size_t b = 0; b < buckets; ++b) {
+      const std::uint32_t t = c[b];
+      c[b] = sum;
+      sum += t;
+    }
+    const int shift = lo + p * digit;
+    for (const std::uint64_t w : a) tmp[c[(w >> shift) & mask]++] = w;
+    a.swap(tmp);
+  }
+}
+
+/// Stable LSD radix sort of `order` by key[k] (parallel arrays), over the low `bits` bits.
+inline void radix_sort_by_key(std::vector<std::uint64_t>& key, std::vector<std::uint32_t>& order,
+                              int bits) {
+  constexpr int kDigit = 11;
+  constexpr std::size_t kBuckets = std::size_t{1} << kDigit;
+  const std::size_t n = order.size();
+  std::vector<std::uint64_t> k1(n);
+  std::vector<std::uint32_t> tmp(n);
+  std::vector<std::uint32_t> count(kBuckets);
+  for (int shift = 0; shift < bits; shift += kDigit) {
+    std::fill(count.begin(), count.end(), 0U);
+    for (std::size_t i = 0; i < n; ++i) ++count[(key[i] >> shift) & (kBuckets - 1)];
+    std::uint32_t sum = 0;
+    for (auto& c : count) {
+      const std::uint32_t t = c;
+      c = sum;
+      sum += t;
+    }
     for (std::size_t i = 0; i < n; ++i) {
-      const auto ux = static_cast<std::uint64_t>(s.ix[i] - bb[0]);
-      const auto uy = static_cast<std::uint64_t>(s.iy[i] - bb[1]);
-      const auto uz = static_cast<std::uint64_t>(s.iz[i] - bb[2]);
-      // A shift by 64 is undefined; an axis with 0 bits contributes 0 anyway.
-      packed[i] = (shift_x < 64 ? ux << shift_x : 0U) | (shift_y < 64 ? uy << shift_y : 0U) | uz;
+      const std::uint32_t dst = count[(key[i] >> shift) & (kBuckets - 1)]++;
+      k1[dst] = key[i];
+      tmp[dst] = order[i];
     }
-    radix_sort_by_key(packed, s.order, bx + by + bz);
-  } else {
-    std::stable_sort(s.order.begin(), s.order.end(), [&](std::uint32_t a, std::uint32_t b) {
-      if (s.ix[a] != s.ix[b]) return s.ix[a] < s.ix[b];
-      if (s.iy[a] != s.iy[b]) return s.iy[a] < s.iy[b];
-      return s.iz[a] < s.iz[b];
-    });
+    key.swap(k1);
+    order.swap(tmp);
   }
-  s.cell_begin.push_back(0);
-  for (std::size_t k = 1; k < n; ++k) {
-    const std::uint32_t a = s.order[k - 1];
-    const std::uint32_t b = s.order[k];
-    if (s.ix[a] != s.ix[b] || s.iy[a] != s.iy[b] || s.iz[a] != s.iz[b]) {
+}
+
+/// Fills cell_begin / cell_key from a sorted `index` and a same-order cell id sequence.
+template <class SameCell, class KeyOf>
+void build_cells(VoxelSort& s, SameCell&& same, KeyOf&& key_of) {
+  const std::size_t n = s.index.size();
+  s.cell_begin.clear();
+  s.cell_key.clear();
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k == 0 || !same(k - 1, k)) {
       s.cell_begin.push_back(static_cast<std::uint32_t>(k));
+      s.cell_key.push_back(key_of(k));
     }
   }
   s.cell_begin.push_back(static_cast<std::uint32_t>(n));
+}
+
+/// Sorts the finite points of `c` by voxel key (leaf sizes `leaf`, each > 0). The key pass runs
+/// on `num_threads`; the sort is serial and stable. Throws InvalidArgument (naming `function`) on
+/// a non-finite point under NonFinite::kThrow, a key of magnitude >= 2^62, or >= 2^32 - 1 points.
+template <PointCloud C>
+[[nodiscard]] VoxelSort sort_by_voxel(const C& c, const std::array<double, 3>& leaf,
+                                      NonFinite on_non_finite, int num_threads,
+                                      const char* function) {
+  const std::size_t n = cloud::size(c);
+  DS3D_CHECK(n < std::numeric_limits<std::uint32_t>::max(), function,
+             ": clouds are limited to 2^32 - 1 points (got ", n, ")");
+  constexpr std::int64_t kHalf = std::int64_t{1} << 20;  // fast path: |key| < 2^20 per axis
+  constexpr std::uint64_t kNonFinite = ~std::uint64_t{0};
+  const std::array<double, 3> inv{1.0 / leaf[0], 1.0 / leaf[1], 1.0 / leaf[2]};
+  // Pass 1: key of every point, packed as three 21-bit fields (offset 2^20); per-chunk bounds.
+  std::unique_ptr<std::uint64_t[]> packed(new std::uint64_t[std::max<std::size_t>(n, 1)]);
+  struct ChunkInfo {
+    std::array<std::int64_t, 3> lo{kHalf, kHalf, kHalf};
+    std::array<std::int64_t, 3> hi{-kHalf, -kHalf, -kHalf};
+    std::size_t non_finite = 0;
+    bool wide = false;  // some |key| >= 2^20
+  };
+  const auto chunks = static_cast<std::size_t>(std::max(1, num_threads));
+  std::vector<ChunkInfo> info(chunks);
+  parallel_chunks(n, chunks, num_threads, [&](std::size_t b, std::size_t e, std::size_t ch) {
+    ChunkInfo ci;
+    for (std::size_t i = b; i < e; ++i) {
+      const Eigen::Vector3f p = cloud::point(c, i);
+      if (!cloud::is_finite(p)) {
+        DS3D_CHECK(on_non_finite != NonFinite::kThrow, function, ": point ", i,
+                   " is not finite (", p.x(), ", ", p.y(), ", ", p.z(), ")");
+        ++ci.non_finite;
+        packed[i] = kNonFinite;
+        continue;
+      }
+      const std::int64_t k[3] = {fast_voxel_index(p.x(), leaf[0], inv[0], function, "x"),
+                                 fast_voxel_index(p.y(), leaf[1], inv[1], function, "y"),
+                                 fast_voxel_index(p.z(), leaf[2], inv[2], function, "z")};
+      std::uint64_t w = 0;
+      for (int d = 0; d < 3; ++d) {
+        const auto du = static_cast<std::size_t>(d);
+        ci.lo[du] = std::min(ci.lo[du], k[d]);
+        ci.hi[du] = std::max(ci.hi[du], k[d]);
+        ci.wide = ci.wide || k[d] < -kHalf || k[d] >= kHalf;
+        w = (w << 21U) | (static_cast<std::uint64_t>(k[d] + kHalf) & 0x1FFFFFU);
+      }
+      packed[i] = w;
+    }
+    info[ch] = ci;
+  });
+  VoxelSort s;
+  ChunkInfo all;
+  for (const auto& ci : info) {
+    s.num_non_finite += ci.non_finite;
+    all.wide = all.wide || ci.wide;
+    for (std::size_t d = 0; d < 3; ++d) {
+      all.lo[d] = std::min(all.lo[d], ci.lo[d]);
+      all.hi[d] = std::max(all.hi[d], ci.hi[d]);
+    }
+  }
+  const std::size_t m = n - s.num_non_finite;
+  if (m == 0) {
+    s.cell_begin.push_back(0);
+    return s;
+  }
+
+  if (!all.wide) {
+    const int bx = bits_for(static_cast<std::uint64_t>(all.hi[0] - all.lo[0]));
+    const int by = bits_for(static_cast<std::uint64_t>(all.hi[1] - all.lo[1]));
+    const int bz = bits_for(static_cast<std::uint64_t>(all.hi[2] - all.lo[2]));
+    const int bits = bx + by + bz;  // <= 63
+    const std::uint64_t ox = static_cast<std::uint64_t>(all.lo[0] + kHalf);
+    const std::uint64_t oy = static_cast<std::uint64_t>(all.lo[1] + kHalf);
+    const std::uint64_t oz = static_cast<std::uint64_t>(all.lo[2] + kHalf);
+    const auto sy = static_cast<unsigned>(bz);
+    const auto sx = static_cast<unsigned>(by + bz);
+    // Compact key: fields relative to their minima, lexicographic order kept.
+    auto compact = [&](std::uint64_t w) {
+      const std::uint64_t fx = (w >> 42U) - ox;
+      const std::uint64_t fy = ((w >> 21U) & 0x1FFFFFU) - oy;
+      const std::uint64_t fz = (w & 0x1FFFFFU) - oz;
+      return (fx << sx) | (fy << sy) | fz;
+    };
+    auto decode = [&](std::uint64_t ck) {
+      const std::uint64_t mz = (std::uint64_t{1} << bz) - 1;
+      const std::uint64_t my = (std::uint64_t{1} << by) - 1;
+      return std::array<std::int64_t, 3>{
+          static_cast<std::int64_t>(ck >> sx) + all.lo[0],
+          static_cast<std::int64_t>((ck >> sy) & my) + all.lo[1],
+          static_cast<std::int64_t>(ck & mz) + all.lo[2]};
+    };
+    if (bits <= 32) {
+      std::vector<std::uint64_t> pairs;
+      pairs.reserve(m);
+      for (std::size_t i = 0; i < n; ++i) {
+        if (packed[i] == kNonFinite) continue;
+        pairs.push_back((compact(packed[i]) << 32U) | i);
+      }
+      radix_sort_words(pairs, 32, bits);
+      s.index.resize(m);
+      for (std::size_t k = 0; k < m; ++k) s.index[k] = static_cast<std::uint32_t>(pairs[k]);
+      build_cells(
+          s, [&](std::size_t a, std::size_t b) { return (pairs[a] >> 32U) == (pairs[b] >> 32U); },
+          [&](std::size_t k) { return decode(pairs[k] >> 32U); });
+    } else {
+      std::vector<std::uint64_t> keys;
+      keys.reserve(m);
+      s.index.reserve(m);
+      for (std::size_t i = 0; i < n; ++i) {
+        if (packed[i] == kNonFinite) continue;
+        keys.push_back(compact(packed[i]));
+        s.index.push_back(static_cast<std::uint32_t>(i));
+      }
+      radix_sort_by_key(keys, s.index, bits);
+      build_cells(
+          s, [&](std::size_t a, std::size_t b) { return keys[a] == keys[b]; },
+          [&](std::size_t k) { return decode(keys[k]); });
+    }
+    return s;
+  }
+
+  // General path: int64 triples (recomputed; rare: keys beyond ±2^20 voxels).
+  std::vector<std::array<std::int64_t, 3>> key(m);
+  s.index.resize(m);
+  {
+    std::size_t k = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (packed[i] == kNonFinite) continue;
+      const Eigen::Vector3f p = cloud::point(c, i);
+      key[k] = {fast_voxel_index(p.x(), leaf[0], inv[0], function, "x"),
+                fast_voxel_index(p.y(), leaf[1], inv[1], function, "y"),
+                fast_voxel_index(p.z(), leaf[2], inv[2], function, "z")};
+      s.index[k] = static_cast<std::uint32_t>(i);
+      ++k;
+    }
+  }
+  std::array<std::int64_t, 3> lo = key[0];
+  std::array<std::int64_t, 3> hi = key[0];
+  for (const auto& k : key) {
+    for (std::size_t d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], k[d]);
+      hi[d] = std::max(hi[d], k[d]);
+    }
+  }
+  const int bx = bits_for(static_cast<std::uint64_t>(hi[0] - lo[0]));
+  const int by = bits_for(static_cast<std::uint64_t>(hi[1] - lo[1]));
+  const int bz = bits_for(static_cast<std::uint64_t>(hi[2] - lo[2]));
+  std::vector<std::uint32_t> order(m);
+  std::iota(order.begin(), order.end(), 0U);
+  if (bx + by + bz <= 64) {
+    std::vector<std::uint64_t> pk(m);
+    const auto sx = static_cast<unsigned>(by + bz);
+    const auto sy = static_cast<unsigned>(bz);
+    for (std::size_t k = 0; k < m; ++k) {
+      const auto ux = static_cast<std::uint64_t>(key[k][0] - lo[0]);
+      const auto uy = static_cast<std::uint64_t>(key[k][1] - lo[1]);
+      const auto uz = static_cast<std::uint64_t>(key[k][2] - lo[2]);
+      // A shift by 64 is undefined; an axis with 0 bits contributes 0 anyway.
+      pk[k] = (sx < 64 ? ux << sx : 0U) | (sy < 64 ? uy << sy : 0U) | uz;
+    }
+    radix_sort_by_key(pk, order, bx + by + bz);
+  } else {
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
+  }
+  std::vector<std::uint32_t> sorted_index(m);
+  for (std::size_t k = 0; k < m; ++k) sorted_index[k] = s.index[order[k]];
+  s.index.swap(sorted_index);
+  build_cells(
+      s, [&](std::size_t a, std::size_t b) { return key[order[a]] == key[order[b]]; },
+      [&](std::size_t k) { return key[order[k]]; });
   return s;
 }
 

@@ -23,6 +23,8 @@ __all__ = sorted(_LAZY)
 
 
 def __getattr__(name):
+    if name in ("boxes", "ops", "losses", "targets", "nms", "sunrgbd", "config", "model", "weights", "detect"):
+        return importlib.import_module(f".{name}", __name__)
     if name in _LAZY:
         return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
     raise AttributeError(f"module 'ds3d.htx' has no attribute {name!r}")

@@ -98,7 +98,7 @@ def footprint_intersection_area(b1, b2):
         t = (w[..., 0] * d2[..., 1] - w[..., 1] * d2[..., 0]) / den
         u = (w[..., 0] * d1[..., 1] - w[..., 1] * d1[..., 0]) / den
     ok_x = (np.abs(den) > 1e-12) & (t >= 0) & (t <= 1) & (u >= 0) & (u <= 1)
-    cross_pts = (a1 + np.nan_to_num(t)[..., None] * d1).reshape(n, 16, 2)
+    cross_pts = (a1 + np.where(ok_x, t, 0.0)[..., None] * d1).reshape(n, 16, 2)
     pts = np.concatenate([p1, p2, cross_pts], axis=1)  # [p, 24, 2]
     valid = np.concatenate([_inside_convex(p1, p2), _inside_convex(p2, p1), ok_x.reshape(n, 16)], axis=1)
     cnt = valid.sum(axis=1)

@@ -1,0 +1,194 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// ds3d vs Open3D 0.16 vs PCL 1.13 on the rendered room frames (~300k and ~1M points), single
+// thread, medians measured in the same run; prints one Markdown table with ratios and a check
+// column (voxels, kept points, inliers of the returned plane counted in double with < t).
+// Usage: compare_open3d_pcl [--sizes 300000,1000000] [--reps N] [--slow-reps N]
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <open3d/geometry/PointCloud.h>
+#include <pcl/filters/radius_outlier_removal.h>
+#include <pcl/filters/voxel_grid.h>
+#include <pcl/point_types.h>
+#include <pcl/sample_consensus/method_types.h>
+#include <pcl/sample_consensus/model_types.h>
+#include <pcl/segmentation/sac_segmentation.h>
+
+#include "ds3d/radius_outlier.hpp"
+#include "ds3d/ransac_plane.hpp"
+#include "ds3d/rgbd.hpp"
+#include "ds3d/voxel_grid.hpp"
+#include "support/depth_scene.hpp"
+
+namespace {
+
+struct Timed {
+  double ms = 0;
+  double check = 0;
+};
+
+/// Median wall time of `reps` runs after one warm-up; fn returns the check value.
+Timed measure(int reps, const std::function<double()>& fn) {
+  Timed t;
+  t.check = fn();
+  std::vector<double> ms;
+  for (int r = 0; r < reps; ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    t.check = fn();
+    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                     .count());
+  }
+  std::sort(ms.begin(), ms.end());
+  t.ms = ms[ms.size() / 2];
+  return t;
+}
+
+double plane_inliers(const ds3d::Points3f& p, Eigen::Vector4d pl, double t) {
+  pl /= pl.head<3>().norm();
+  std::size_t n = 0;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    const double d = pl.head<3>().dot(p.row(i).cast<double>().transpose()) + pl[3];
+    n += std::abs(d) < t ? 1 : 0;
+  }
+  return static_cast<double>(n);
+}
+
+ds3d::PinholeCamera camera_for(std::int64_t points) {
+  ds3d::PinholeCamera cam;
+  if (points > 400'000) {
+    cam.width = 1280;
+    cam.height = 800;
+    cam.fx = cam.fy = 1050.0;
+    cam.cx = 639.5;
+    cam.cy = 399.5;
+  }
+  return cam;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::int64_t> sizes{300'000, 1'000'000};
+  int reps = 5;
+  int slow_reps = 3;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i];
+    if (a == "--sizes") {
+      sizes.clear();
+      std::string s = argv[i + 1];
+      for (std::size_t pos = 0; pos < s.size();) {
+        const std::size_t end = s.find(',', pos);
+        sizes.push_back(std::stoll(s.substr(pos, end - pos)));
+        pos = end == std::string::npos ? s.size() : end + 1;
+      }
+    } else if (a == "--reps") {
+      reps = std::stoi(argv[i + 1]);
+    } else if (a == "--slow-reps") {
+      slow_reps = std::stoi(argv[i + 1]);
+    }
+  }
+  omp_set_num_threads(1);  // single-thread comparison: Open3D's plane and radius use OpenMP
+
+  std::printf("| op | points | ds3d ms | Open3D ms | PCL ms | Open3D / ds3d | PCL / ds3d | check ds3d / Open3D / PCL |\n");
+  std::printf("|---|---|---|---|---|---|---|---|\n");
+  for (const std::int64_t size : sizes) {
+    const auto frame = ds3d::test::render_room(1, camera_for(size));
+    const ds3d::Points3f pts =
+        ds3d::depth_to_points(frame.depth.data(), frame.camera.width, frame.camera.height,
+                              frame.camera.width, frame.camera)
+            .points;
+    open3d::geometry::PointCloud o3d;
+    o3d.points_.reserve(static_cast<std::size_t>(pts.rows()));
+    pcl::PointCloud<pcl::PointXYZ>::Ptr pc(new pcl::PointCloud<pcl::PointXYZ>);
+    pc->reserve(static_cast<std::size_t>(pts.rows()));
+    for (Eigen::Index i = 0; i < pts.rows(); ++i) {
+      o3d.points_.emplace_back(pts.row(i).cast<double>().transpose());
+      pc->push_back(pcl::PointXYZ(pts(i, 0), pts(i, 1), pts(i, 2)));
+    }
+    pc->is_dense = true;
+    const long n = static_cast<long>(pts.rows());
+    auto row = [&](const char* op, const Timed& a, const Timed& b, const Timed& c) {
+      std::printf("| %s | %ld | %.1f | %.1f | %.1f | %.1f× | %.1f× | %.0f / %.0f / %.0f |\n", op, n,
+                  a.ms, b.ms, c.ms, b.ms / a.ms, c.ms / a.ms, a.check, b.check, c.check);
+      std::fflush(stdout);
+    };
+
+    for (const double leaf : {0.01, 0.05}) {
+      const Timed a = measure(reps, [&] {
+        return static_cast<double>(ds3d::voxel_grid(pts, {.leaf_size = leaf}).counts.size());
+      });
+      const Timed b = measure(reps, [&] {
+        return static_cast<double>(o3d.VoxelDownSample(leaf)->points_.size());
+      });
+      const Timed c = measure(reps, [&] {
+        pcl::VoxelGrid<pcl::PointXYZ> vg;
+        vg.setInputCloud(pc);
+        const auto l = static_cast<float>(leaf);
+        vg.setLeafSize(l, l, l);
+        pcl::PointCloud<pcl::PointXYZ> out;
+        vg.filter(out);
+        return static_cast<double>(out.size());
+      });
+      row(leaf == 0.01 ? "voxel 0.01 m" : "voxel 0.05 m", a, b, c);
+    }
+    {
+      const Timed a = measure(slow_reps, [&] {
+        return static_cast<double>(
+            ds3d::remove_radius_outliers(pts, {.radius = 0.05, .min_neighbors = 16}).kept.size());
+      });
+      const Timed b = measure(slow_reps, [&] {
+        return static_cast<double>(std::get<1>(o3d.RemoveRadiusOutliers(16, 0.05)).size());
+      });
+      const Timed c = measure(slow_reps, [&] {
+        pcl::RadiusOutlierRemoval<pcl::PointXYZ> ror;
+        ror.setInputCloud(pc);
+        ror.setRadiusSearch(0.05);
+        ror.setMinNeighborsInRadius(16);
+        pcl::PointCloud<pcl::PointXYZ> out;
+        ror.filter(out);
+        return static_cast<double>(out.size());
+      });
+      row("radius R 0.05 m, k 16", a, b, c);
+    }
+    {
+      const Timed a = measure(slow_reps, [&] {
+        ds3d::RansacPlaneParams p;
+        p.distance_threshold = 0.01;
+        p.max_iterations = 1000;
+        p.confidence = 1.0;
+        return plane_inliers(pts, ds3d::ransac_plane(pts, p).plane, 0.01);
+      });
+      const Timed b = measure(slow_reps, [&] {
+        const auto [pl, inl] = o3d.SegmentPlane(0.01, 3, 1000, 1.0);
+        return plane_inliers(pts, pl, 0.01);
+      });
+      const Timed c = measure(slow_reps, [&] {
+        pcl::SACSegmentation<pcl::PointXYZ> seg;
+        seg.setModelType(pcl::SACMODEL_PLANE);
+        seg.setMethodType(pcl::SAC_RANSAC);
+        seg.setDistanceThreshold(0.01);
+        seg.setMaxIterations(1000);
+        seg.setProbability(1.0);
+        seg.setInputCloud(pc);
+        pcl::ModelCoefficients coef;
+        pcl::PointIndices inl;
+        seg.segment(inl, coef);
+        if (coef.values.size() != 4) return 0.0;
+        return plane_inliers(pts, Eigen::Vector4d(coef.values[0], coef.values[1], coef.values[2],
+                                                  coef.values[3]),
+                             0.01);
+      });
+      row("plane 1000 it, t 0.01", a, b, c);
+    }
+  }
+  return 0;
+}

@@ -1,0 +1,31 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// ds3d::voxel_grid on a rendered room frame (~300k points) and a 1280x800 frame (~1M points).
+#include <benchmark/benchmark.h>
+
+#include "ds3d/voxel_grid.hpp"
+#include "preprocess_clouds.hpp"
+
+namespace {
+
+void BM_VoxelGrid(benchmark::State& state) {
+  const ds3d::Points3f& p = ds3d::bench::room_cloud(state.range(0));
+  const double leaf = static_cast<double>(state.range(1)) / 1000.0;
+  const int threads = static_cast<int>(state.range(2));
+  std::size_t voxels = 0;
+  for (auto _ : state) {
+    const auto r = ds3d::voxel_grid(p, {.leaf_size = leaf, .num_threads = threads});
+    voxels = r.counts.size();
+    benchmark::DoNotOptimize(r.centroids.data());
+  }
+  state.counters["points"] = static_cast<double>(p.rows());
+  state.counters["voxels"] = static_cast<double>(voxels);
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * p.rows());
+}
+// Args: points (300k or 1M frame), leaf [mm], threads.
+BENCHMARK(BM_VoxelGrid)
+    ->ArgsProduct({{300'000, 1'000'000}, {10, 50}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+}  // namespace

@@ -1,0 +1,141 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#pragma once
+/// @file synth.hpp
+/// @brief Synthetic dynamic RGB-D sequences with ground truth for the dynamic part
+/// (compiled into ds3d::slam; uses OpenCV for images and PNG files).
+///
+/// A textured indoor room (walls, floor, ceiling, furniture boxes with random high-contrast
+/// textures that ORB can track) with 0-4 humanoids built from capsules and ellipsoids (torso,
+/// head, upper/lower arms and legs), walking with a sinusoidal gait or sitting and moving a
+/// little. The camera follows TUM-like trajectories (static, xyz, halfsphere, rpy) at 30 Hz.
+/// Rendering is our own z-buffer rasteriser of tessellated primitives (no OpenGL). Depth is
+/// Kinect-like: Gaussian noise sigma = 1.425e-3 z^2 m (Khoshelham & Elberink 2012), disparity
+/// quantised to 1/8 pixel (baseline 7.5 cm), holes at depth discontinuities and beyond 4.5 m.
+///
+/// World frame: z up, the floor is z = 0, the room spans [0, 4.5] x [0, 5] x [0, 2.8] m.
+/// Camera frame and poses follow TUM (x right, y down, z forward; T_world_cam camera-to-world).
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include "ds3d/camera.hpp"
+
+namespace ds3d::synth {
+
+/// The scene and camera motion, named like the TUM fr3 dynamic sequences.
+enum class Scenario : std::uint8_t {
+  kStaticRoom,         ///< "static_room": no humans, xyz camera motion
+  kWalkingStatic,      ///< "walking_static": walkers, near-static camera
+  kWalkingXyz,         ///< "walking_xyz": walkers, translation along the camera axes
+  kWalkingHalfsphere,  ///< "walking_halfsphere": walkers, camera on a half sphere
+  kWalkingRpy,         ///< "walking_rpy": walkers, roll/pitch/yaw camera rotation
+  kSittingStatic,      ///< "sitting_static": seated humans moving a little, static camera
+  kSittingXyz,         ///< "sitting_xyz": seated humans, xyz camera motion
+};
+
+/// Parses a scenario name (see Scenario). @throws ds3d::InvalidArgument listing the valid names.
+[[nodiscard]] Scenario parse_scenario(std::string_view name);
+
+/// The name of a scenario ("walking_xyz", ...).
+[[nodiscard]] std::string scenario_name(Scenario s);
+
+/// Generator settings.
+struct SynthOptions {
+  Scenario scenario = Scenario::kWalkingXyz;  ///< scene and camera motion
+  int num_frames = 30;                        ///< frames, 1 ... 100000
+  std::uint64_t seed = 1;                     ///< everything random derives from it
+  int num_humans = -1;                        ///< 0 ... 4; -1: 2 (0 for static_room)
+  double fps = 30.0;                          ///< frame rate [Hz], (0, 1000]
+  double start_time = 1700000000.0;           ///< stamp of frame 0 [s]
+  /// Intrinsics (no distortion allowed); default TUM ROS 525/525/319.5/239.5, 640 x 480.
+  PinholeCamera camera = PinholeCamera{};
+  bool depth_noise = true;    ///< false: exact depth (still x depth_scale, rounded), no holes
+  bool write_parts = false;   ///< also write per-pixel human id and part locations (see below)
+  void validate() const;      ///< throws ds3d::InvalidArgument naming the bad field
+};
+
+/// A humanoid's gravity-aligned oriented 3-D box (tight around its primitives) in the world.
+struct HumanBox {
+  int id = 0;                                          ///< 0 ... num_humans-1, stable over time
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();    ///< box centre, world [m]
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();      ///< extent along its local x (facing), y, z [m]
+  double yaw = 0;                                      ///< heading about world z [rad]
+  bool sitting = false;                                ///< seated (moves a little) or walking
+  int visible_pixels = 0;                              ///< pixels of this human in the frame
+};
+
+/// One rendered frame.
+struct SynthFrame {
+  std::size_t index = 0;        ///< frame number
+  double timestamp = 0;         ///< [s]
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< ground-truth pose
+  cv::Mat rgb;                  ///< CV_8UC3 BGR
+  cv::Mat depth;                ///< CV_16UC1, camera.depth_scale units per metre, 0 = no depth
+  cv::Mat depth_true;           ///< CV_32FC1 noiseless z [m], 0 where nothing was hit
+  cv::Mat dynamic_mask;         ///< CV_8UC1: 255 where a human is seen, else 0
+  cv::Mat human_id;             ///< CV_8UC1: 0 static, k+1 for human k
+  cv::Mat part_id;              ///< CV_8UC1: 0 static, else body part 1..10 (see part_names())
+  std::vector<HumanBox> boxes;  ///< every human, visible or not
+};
+
+/// Body-part names for part_id values 1..10 (index 0 is "static").
+[[nodiscard]] const std::vector<std::string>& part_names();
+
+/// Intra-object part locations (Part-A2, Shi et al. 2020): for each human pixel with depth, its
+/// position inside the human's box, normalised to [0, 1]^3 along the box's x, y, z axes.
+/// @return CV_32FC3 image (0 where no human); uses depth_true.
+[[nodiscard]] cv::Mat part_locations(const SynthFrame& frame, const PinholeCamera& camera);
+
+/// A procedurally built scene; renders any frame on demand.
+/// @note Deterministic: the same options give bit-identical frames. render() is const and safe
+///       to call concurrently (one frame per thread). O(pixels + triangles) per frame.
+class SyntheticScene {
+ public:
+  /// Builds the room, furniture, textures and humans from the options.
+  /// @throws ds3d::InvalidArgument for bad options.
+  explicit SyntheticScene(const SynthOptions& options);
+  ~SyntheticScene();
+  SyntheticScene(SyntheticScene&&) noexcept;
+  SyntheticScene& operator=(SyntheticScene&&) noexcept;
+  SyntheticScene(const SyntheticScene&) = delete;
+  SyntheticScene& operator=(const SyntheticScene&) = delete;
+
+  [[nodiscard]] std::size_t size() const;                     ///< options.num_frames
+  [[nodiscard]] const SynthOptions& options() const;          ///< as given
+  [[nodiscard]] double timestamp(std::size_t i) const;        ///< start_time + i / fps
+  /// Camera pose at any time t [s] (the trajectory is analytic), camera-to-world.
+  [[nodiscard]] Eigen::Isometry3d camera_pose(double t) const;
+  /// Renders frame i. @throws ds3d::InvalidArgument for i >= size().
+  [[nodiscard]] SynthFrame render(std::size_t i) const;
+
+ private:
+  struct Impl;
+  Impl* impl_ = nullptr;
+};
+
+/// What generate_sequence() wrote.
+struct SynthSummary {
+  std::size_t frames = 0;            ///< frames written
+  std::size_t dynamic_pixels = 0;    ///< total human pixels over all frames
+  double render_seconds = 0;         ///< CPU time of the calling thread spent rendering (no PNG)
+  double total_seconds = 0;          ///< wall time of the whole call
+};
+
+/// Writes a TUM-layout folder: rgb/<t>.png, depth/<t>.png (16-bit, x depth_scale), rgb.txt,
+/// depth.txt, groundtruth.txt (100 Hz, analytic), camera.txt, mask/<t>.png (dynamic pixels,
+/// 0/255), boxes.jsonl (one JSON object per frame: timestamp, frame, boxes[{id, center, size,
+/// yaw, sitting, visible_pixels}]), and with options.write_parts: parts/<t>.png (CV_8UC3: B =
+/// human id (k+1), G = part id, R = 0) and parts_loc/<t>.png (CV_16UC3, x y z location in the box
+/// x 65535). Every file is written to a temporary name and renamed; the lists are written last.
+/// @param out_dir created if missing
+/// @throws ds3d::InvalidArgument for bad options; ds3d::IoError when writing fails.
+SynthSummary generate_sequence(const std::filesystem::path& out_dir, const SynthOptions& options);
+
+}  // namespace ds3d::synth

@@ -1,0 +1,62 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// Bindings for include/ds3d/radius_outlier.hpp: ds3d.remove_radius_outliers(points, radius,
+// min_neighbors, num_threads=1).
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include "ds3d/radius_outlier.hpp"
+#include "numpy_util.hpp"
+
+namespace py = pybind11;
+
+namespace {
+
+template <class Ref>
+ds3d::RadiusOutlierResult run(const Ref& points, double radius, std::int64_t min_neighbors,
+                              int num_threads) {
+  DS3D_CHECK(min_neighbors >= 0 && min_neighbors <= 0xFFFFFFFFLL,
+             "ds3d.remove_radius_outliers: min_neighbors must be in [0, 2^32) (got ", min_neighbors,
+             ")");
+  ds3d::RadiusOutlierParams p;
+  p.radius = radius;
+  p.min_neighbors = static_cast<std::uint32_t>(min_neighbors);
+  p.num_threads = num_threads;
+  const py::gil_scoped_release release;
+  return ds3d::remove_radius_outliers(points, p);
+}
+
+}  // namespace
+
+void bind_radius_outlier(py::module_& m) {
+  py::class_<ds3d::RadiusOutlierResult>(m, "RadiusOutlierResult",
+                                        "Output of remove_radius_outliers "
+                                        "(include/ds3d/radius_outlier.hpp).")
+      .def_property_readonly(
+          "kept", [](const ds3d::RadiusOutlierResult& r) { return ds3d::py_util::to_numpy(r.kept); },
+          "(K,) uint32 ascending input indices of kept points")
+      .def_readonly("num_non_finite", &ds3d::RadiusOutlierResult::num_non_finite)
+      .def("__repr__", [](const ds3d::RadiusOutlierResult& r) {
+        return "<RadiusOutlierResult kept=" + std::to_string(r.kept.size()) + ">";
+      });
+  const char* doc =
+      "Keep points with >= min_neighbors other finite points within radius (<=, in double).\n"
+      "See include/ds3d/radius_outlier.hpp. points: (N, 3) float32 or float64.\n"
+      "Raises ValueError on bad parameters.";
+  m.def("remove_radius_outliers", &run<Eigen::Ref<const ds3d::Points3f>>,
+        py::arg("points").noconvert(), py::arg("radius"), py::arg("min_neighbors"),
+        py::arg("num_threads") = 1, doc);
+  m.def("remove_radius_outliers", &run<Eigen::Ref<const ds3d::Points3d>>,
+        py::arg("points").noconvert(), py::arg("radius"), py::arg("min_neighbors"),
+        py::arg("num_threads") = 1, doc);
+  m.def("remove_radius_outliers", &run<Eigen::Ref<const ds3d::Points3d>>, py::arg("points"),
+        py::arg("radius"), py::arg("min_neighbors"), py::arg("num_threads") = 1, doc);
+  m.def(
+      "remove_radius_outliers",
+      [](const py::object& points, const py::object&, const py::object&, const py::object&) {
+        ds3d::py_util::reject_points("ds3d.remove_radius_outliers", points);
+      },
+      py::arg("points"), py::arg("radius"), py::arg("min_neighbors"),
+      py::arg("num_threads") = 1);
+}

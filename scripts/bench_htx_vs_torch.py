@@ -1,0 +1,71 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: Apache-2.0
+# SPDX-FileCopyrightText: 2026 ds3d authors
+"""Side-by-side timing of HTx-lite inference: PyTorch reference vs C++ ds3d.SparseDetector,
+same weights, same 4,096-point input, one thread each (torch.set_num_threads(1), num_threads=1).
+Runs are interleaved (torch, C++, torch, ...) so that load from other processes hits both alike;
+the table gives the median and minimum per frame and the ratio of medians.
+
+Usage: PYTHONPATH=build/python /usr/bin/python3 scripts/bench_htx_vs_torch.py [--reps 15]
+"""
+import argparse
+import os
+import statistics
+import sys
+import tempfile
+import time
+
+import numpy as np
+import torch
+
+import ds3d
+from ds3d import htx
+
+
+def scene(n=4096, seed=7):
+    rng = np.random.default_rng(seed)
+    lo = np.array([[-2.0, 3.9, 0.0], [-2.0, 0.5, 0.0], [0.2, 1.5, 0.0], [-1.0, 2.5, 0.0]])
+    hi = np.array([[2.0, 4.0, 2.5], [-1.9, 4.0, 2.5], [0.7, 2.0, 1.7], [0.0, 3.2, 0.8]])
+    part = np.arange(n) % 4
+    return rng.uniform(lo[part], hi[part]).astype(np.float32)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--reps", type=int, default=15)
+    ap.add_argument("--profiles", default="fast,quality")
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    pts = scene()
+    xyz = torch.from_numpy(pts)
+    print(f"torch {torch.__version__}, threads {torch.get_num_threads()}; ds3d {ds3d.__version__}; "
+          f"{len(pts)} points; {args.reps} interleaved reps; load {os.getloadavg()[0]:.1f}")
+    print("| profile | part head | PyTorch median [ms] | PyTorch min | C++ median [ms] | C++ min | speed-up (medians) |")
+    print("|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for profile in args.profiles.split(","):
+            model = htx.build_model(profile, seed=0)
+            path = os.path.join(tmp, f"{profile}.safetensors")
+            htx.export(model, path)
+            det = ds3d.SparseDetector.load(path)
+            for parts in (False, True):
+                tt, tc = [], []
+                with torch.no_grad():
+                    model(xyz, with_parts=parts, all_layers=False)  # warm-up
+                    det.run(pts, 1, parts)
+                    for _ in range(args.reps):
+                        t0 = time.perf_counter()
+                        model(xyz, with_parts=parts, all_layers=False)
+                        t1 = time.perf_counter()
+                        det.run(pts, 1, parts)
+                        t2 = time.perf_counter()
+                        tt.append((t1 - t0) * 1e3)
+                        tc.append((t2 - t1) * 1e3)
+                mt, mc = statistics.median(tt), statistics.median(tc)
+                print(f"| {profile} | {'yes' if parts else 'no'} | {mt:.1f} | {min(tt):.1f} | {mc:.1f} | "
+                      f"{min(tc):.1f} | {mt / mc:.1f}x |")
+    sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,301 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// ds3d-slam: runs the RGB-D SLAM front-end (include/ds3d/slam_frontend.hpp) on a TUM/Bonn folder.
+// Usage: see --help. Exit codes: 0 ok, 1 runtime error, 2 bad usage.
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+// GCC 12 -O3 reports a false -Wrestrict inside std::string::insert as inlined into
+// detail::write_file_atomically (trajectory.hpp); silence it for these headers only.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wrestrict"
+#include "ds3d/dataset.hpp"
+#include "ds3d/detail/json.hpp"
+#include "ds3d/errors.hpp"
+#include "ds3d/slam_frontend.hpp"
+#include "ds3d/trajectory.hpp"
+#pragma GCC diagnostic pop
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
+    "                 [--dynamic none] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
+    "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
+    "                 [--cv-threads N] [--quiet]\n"
+    "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
+    "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present.\n"
+    "--dynamic: only 'none' is available until the dynamic filter lands.\n"
+    "--cv-threads: OpenCV's own worker threads (default 1: the pipeline stages are the threads).\n";
+
+struct Args {
+  std::filesystem::path dataset;
+  std::string camera;
+  std::filesystem::path out = "trajectory.txt";
+  std::string dynamic = "none";
+  std::size_t max_frames = 0;
+  std::filesystem::path stats;
+  std::filesystem::path viz;
+  std::filesystem::path keyframes;
+  std::filesystem::path map;
+  bool threads = true;
+  bool local_ba = true;
+  int cv_threads = 1;
+  bool quiet = false;
+};
+
+[[noreturn]] void usage_error(const std::string& msg) {
+  std::cerr << "ds3d-slam: " << msg << "\n" << kUsage;
+  std::exit(2);
+}
+
+long parse_int(const std::string& flag, const std::string& v, long lo) {
+  char* end = nullptr;
+  const long x = std::strtol(v.c_str(), &end, 10);
+  if (v.empty() || end == nullptr || *end != '\0' || x < lo) {
+    std::ostringstream msg;
+    msg << flag << " expects an integer >= " << lo << " (got '" << v << "')";
+    usage_error(msg.str());
+  }
+  return x;
+}
+
+Args parse(int argc, char** argv) {
+  Args a;
+  std::vector<std::string> pos;
+  for (int i = 1; i < argc; ++i) {
+    const std::string s = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) usage_error(s + " needs a value");
+      return argv[++i];
+    };
+    if (s == "-h" || s == "--help") {
+      std::cout << kUsage;
+      std::exit(0);
+    } else if (s == "--camera") {
+      a.camera = value();
+    } else if (s == "--out") {
+      a.out = value();
+    } else if (s == "--dynamic") {
+      a.dynamic = value();
+    } else if (s == "--max-frames") {
+      a.max_frames = static_cast<std::size_t>(parse_int(s, value(), 0));
+    } else if (s == "--stats") {
+      a.stats = value();
+    } else if (s == "--viz") {
+      a.viz = value();
+    } else if (s == "--keyframes") {
+      a.keyframes = value();
+    } else if (s == "--map") {
+      a.map = value();
+    } else if (s == "--no-threads") {
+      a.threads = false;
+    } else if (s == "--no-local-ba") {
+      a.local_ba = false;
+    } else if (s == "--cv-threads") {
+      a.cv_threads = static_cast<int>(parse_int(s, value(), 0));
+    } else if (s == "--quiet") {
+      a.quiet = true;
+    } else if (!s.empty() && s[0] == '-') {
+      usage_error("unknown option '" + s + "'");
+    } else {
+      pos.push_back(s);
+    }
+  }
+  if (pos.size() != 1) usage_error("expected exactly one DATASET_DIR");
+  a.dataset = pos[0];
+  if (a.dynamic != "none") {
+    const bool known = a.dynamic == "geometric" || a.dynamic == "htx" || a.dynamic.rfind("file:", 0) == 0;
+    std::ostringstream msg;
+    msg << "--dynamic '" << a.dynamic << "' is " << (known ? "not implemented yet" : "unknown")
+        << " (available: none; geometric, htx and file:PATH come with the dynamic filter)";
+    usage_error(msg.str());
+  }
+  return a;
+}
+
+struct Percentiles {
+  double median = 0;
+  double p95 = 0;
+};
+Percentiles percentiles(std::vector<double> v) {
+  if (v.empty()) return {};
+  std::sort(v.begin(), v.end());
+  auto at = [&](double q) {
+    const double pos = q * static_cast<double>(v.size() - 1);
+    const auto lo = static_cast<std::size_t>(pos);
+    const std::size_t hi = std::min(lo + 1, v.size() - 1);
+    return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
+  };
+  return {at(0.5), at(0.95)};
+}
+
+void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
+              const ds3d::slam::TrackResult& r) {
+  cv::Mat img = ds.frame(r.index).rgb.clone();
+  for (std::size_t i = 0; i < r.keypoints.size(); ++i) {
+    cv::Scalar c(128, 128, 128);
+    if (r.keypoint_status[i] == ds3d::slam::KeypointStatus::kTracked) c = cv::Scalar(0, 200, 0);
+    if (r.keypoint_status[i] == ds3d::slam::KeypointStatus::kDynamic) c = cv::Scalar(0, 0, 255);
+    cv::circle(img, r.keypoints[i], 3, c, 1, cv::LINE_AA);
+  }
+  std::ostringstream label;
+  label << "#" << r.index << " " << ds3d::slam::to_string(r.state) << " inliers " << r.num_inliers
+        << (r.keyframe ? " KF" : "");
+  cv::putText(img, label.str(), {8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 255, 255), 1,
+              cv::LINE_AA);
+  char name[32];
+  std::snprintf(name, sizeof(name), "frame_%06zu.jpg", r.index);
+  const auto path = dir / name;
+  DS3D_CHECK_AS(ds3d::IoError, cv::imwrite(path.string(), img), "ds3d-slam: cannot write ",
+                path.string());
+}
+
+int run(const Args& a) {
+  ds3d::DatasetOptions dopt;
+  if (!a.camera.empty()) {
+    const bool preset = a.camera == "tum1" || a.camera == "tum2" || a.camera == "tum3" ||
+                        a.camera == "tum_ros" || a.camera == "bonn";
+    dopt.camera = preset ? ds3d::camera_preset(a.camera) : ds3d::read_camera_file(a.camera);
+  }
+  const auto ds = ds3d::RgbdDataset::open(a.dataset, dopt);
+  DS3D_CHECK_AS(ds3d::IoError, ds.size() > 0, "ds3d-slam: no associated rgb/depth pairs in ",
+                a.dataset.string());
+  cv::setNumThreads(a.cv_threads);
+
+  ds3d::slam::FrontendConfig cfg;
+  cfg.camera = ds.camera();
+  cfg.enable_local_ba = a.local_ba;
+  cfg.mapping_thread = a.threads;
+  ds3d::slam::SlamFrontend slam(cfg);
+  if (!a.viz.empty()) std::filesystem::create_directories(a.viz);
+
+  const std::size_t total = a.max_frames == 0 ? ds.size() : std::min(a.max_frames, ds.size());
+  const bool tty = !a.quiet && isatty(fileno(stderr)) != 0;
+  std::vector<double> frame_ms;  // wall time between consecutive outputs
+  auto last = std::chrono::steady_clock::now();
+  const auto t_start = last;
+  std::size_t done = 0;
+  const auto on_result = [&](const ds3d::slam::TrackResult& r) {
+    const auto now = std::chrono::steady_clock::now();
+    frame_ms.push_back(std::chrono::duration<double, std::milli>(now - last).count());
+    last = now;
+    ++done;
+    if (!a.viz.empty()) draw_viz(a.viz, ds, r);
+    if (tty && (done % 5 == 0 || done == total)) {
+      const double sec = std::chrono::duration<double>(now - t_start).count();
+      const int width = 30;
+      const auto filled = static_cast<int>(width * static_cast<double>(done) / static_cast<double>(total));
+      std::fprintf(stderr, "\r[%s%s] %zu/%zu frames  %.1f fps  %s   ",
+                   std::string(static_cast<std::size_t>(filled), '#').c_str(),
+                   std::string(static_cast<std::size_t>(width - filled), '.').c_str(), done, total,
+                   sec > 0 ? static_cast<double>(done) / sec : 0.0, ds3d::slam::to_string(r.state));
+      std::fflush(stderr);
+    }
+  };
+  ds3d::slam::PipelineOptions popt;
+  popt.threaded = a.threads;
+  const auto results = ds3d::slam::run_dataset(slam, ds, total, on_result, popt);
+  if (tty) std::fprintf(stderr, "\n");
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+
+  ds3d::write_tum_trajectory(a.out, ds3d::slam::to_trajectory(slam.trajectory()));
+  if (!a.keyframes.empty()) {
+    ds3d::write_tum_trajectory(a.keyframes, ds3d::slam::to_trajectory(slam.keyframe_trajectory()));
+  }
+  if (!a.map.empty()) slam.write_map_ply(a.map);
+
+  std::size_t tracked = 0;
+  std::size_t lost = 0;
+  std::size_t relocalized = 0;
+  std::vector<double> ex;
+  std::vector<double> de;
+  std::vector<double> fi;
+  std::vector<double> tr;
+  for (const auto& r : results) {
+    tracked += r.tracked ? 1 : 0;
+    lost += r.state == ds3d::slam::TrackState::kLost ? 1 : 0;
+    relocalized += r.state == ds3d::slam::TrackState::kRelocalized ? 1 : 0;
+    ex.push_back(r.times.extract_ms);
+    de.push_back(r.times.detect_ms);
+    fi.push_back(r.times.filter_ms);
+    tr.push_back(r.times.track_ms);
+  }
+  // The first frames include thread start-up; fps is over the steady state (all intervals but
+  // the first) so that it reflects the pipeline's throughput.
+  std::vector<double> fps;
+  for (std::size_t i = 1; i < frame_ms.size(); ++i) fps.push_back(frame_ms[i] > 0 ? 1000.0 / frame_ms[i] : 0.0);
+  const auto fps_p = percentiles(fps);
+  if (!a.stats.empty()) {
+    using ds3d::detail::json_escape;
+    using ds3d::detail::json_number;
+    std::ostringstream js;
+    auto stage = [&](const char* name, const std::vector<double>& v, bool comma) {
+      const auto p = percentiles(v);
+      js << "    \"" << json_escape(name) << "\"" << ": {\"median_ms\": " << json_number(p.median)
+         << ", \"p95_ms\": " << json_number(p.p95) << "}" << (comma ? ",\n" : "\n");
+    };
+    js << "{\n  \"dataset\": \"" << json_escape(a.dataset.string()) << "\",\n"
+       << "  \"dynamic\": \"" << json_escape(a.dynamic) << "\",\n"
+       << "  \"frames\": " << results.size() << ",\n"
+       << "  \"tracked_frames\": " << tracked << ",\n"
+       << "  \"lost_frames\": " << lost << ",\n"
+       << "  \"relocalized_frames\": " << relocalized << ",\n"
+       << "  \"keyframes\": " << slam.num_keyframes() << ",\n"
+       << "  \"map_points\": " << slam.map_points().rows() << ",\n"
+       << "  \"threaded\": " << (a.threads ? "true" : "false") << ",\n"
+       << "  \"wall_s\": " << json_number(wall_s) << ",\n"
+       << "  \"fps_mean\": " << json_number(static_cast<double>(results.size()) / wall_s) << ",\n"
+       << "  \"fps_median\": " << json_number(fps_p.median) << ",\n"
+       << "  \"frame_interval\": {\"median_ms\": " << json_number(percentiles(frame_ms).median)
+       << ", \"p95_ms\": " << json_number(percentiles(frame_ms).p95) << "},\n"
+       << "  \"local_ba\": {\"count\": " << slam.num_local_ba() << ", \"total_ms\": "
+       << json_number(slam.local_ba_ms()) << ", \"mean_ms\": "
+       << json_number(slam.num_local_ba() > 0 ? slam.local_ba_ms() / static_cast<double>(slam.num_local_ba()) : 0.0)
+       << "},\n  \"stages\": {\n";
+    stage("extract", ex, true);
+    stage("detect", de, true);
+    stage("filter", fi, true);
+    stage("track", tr, false);
+    js << "  }\n}\n";
+    std::ofstream out(a.stats);
+    out << js.str();
+    DS3D_CHECK_AS(ds3d::IoError, out.good(), "ds3d-slam: cannot write ", a.stats.string());
+  }
+  if (!a.quiet) {
+    std::cout << "frames " << results.size() << ", tracked " << tracked << ", lost " << lost
+              << ", keyframes " << slam.num_keyframes() << ", map points " << slam.map_points().rows()
+              << ", " << static_cast<double>(results.size()) / wall_s << " fps (median "
+              << fps_p.median << ")\n"
+              << "trajectory written to " << a.out.string() << "\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args a = parse(argc, argv);
+  try {
+    return run(a);
+  } catch (const std::exception& e) {
+    std::cerr << "ds3d-slam: " << e.what() << "\n";
+    return 1;
+  }
+}

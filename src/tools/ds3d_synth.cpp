@@ -1,0 +1,80 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// ds3d-synth OUT_DIR --scenario NAME --frames N --seed S [--humans K] [--fps F] [--parts]
+//            [--no-noise]: writes a synthetic dynamic RGB-D sequence in TUM layout.
+#include <cstdlib>
+#include <exception>
+#include <iostream>
+#include <string>
+
+#include "ds3d/synth.hpp"
+
+namespace {
+
+int usage(const char* msg) {
+  std::cerr << "ds3d-synth: " << msg << "\n"
+            << "usage: ds3d-synth OUT_DIR [--scenario NAME] [--frames N] [--seed S] [--humans K]\n"
+            << "                  [--fps F] [--parts] [--no-noise]\n"
+            << "scenarios: static_room walking_static walking_xyz walking_halfsphere walking_rpy\n"
+            << "           sitting_static sitting_xyz\n";
+  return 2;
+}
+
+long parse_int(const std::string& flag, const std::string& v) {
+  std::size_t used = 0;
+  const long x = std::stol(v, &used);
+  if (used != v.size()) throw std::invalid_argument(flag + ": not an integer: '" + v + "'");
+  return x;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    std::string out;
+    ds3d::synth::SynthOptions opt;
+    for (int i = 1; i < argc; ++i) {
+      const std::string a = argv[i];
+      const auto value = [&]() -> std::string {
+        if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
+        return argv[++i];
+      };
+      if (a == "--scenario") {
+        opt.scenario = ds3d::synth::parse_scenario(value());
+      } else if (a == "--frames") {
+        opt.num_frames = static_cast<int>(parse_int(a, value()));
+      } else if (a == "--seed") {
+        opt.seed = static_cast<std::uint64_t>(parse_int(a, value()));
+      } else if (a == "--humans") {
+        opt.num_humans = static_cast<int>(parse_int(a, value()));
+      } else if (a == "--fps") {
+        opt.fps = std::stod(value());
+      } else if (a == "--parts") {
+        opt.write_parts = true;
+      } else if (a == "--no-noise") {
+        opt.depth_noise = false;
+      } else if (a == "-h" || a == "--help") {
+        usage("help");
+        return 0;
+      } else if (!a.empty() && a[0] == '-') {
+        return usage(("unknown option " + a).c_str());
+      } else if (out.empty()) {
+        out = a;
+      } else {
+        return usage("more than one OUT_DIR");
+      }
+    }
+    if (out.empty()) return usage("missing OUT_DIR");
+    const auto s = ds3d::synth::generate_sequence(out, opt);
+    std::cout << "ds3d-synth: wrote " << s.frames << " frames of "
+              << ds3d::synth::scenario_name(opt.scenario) << " (seed " << opt.seed << ") to "
+              << out << "\n  render " << 1e3 * s.render_seconds / static_cast<double>(s.frames)
+              << " ms/frame, total " << 1e3 * s.total_seconds / static_cast<double>(s.frames)
+              << " ms/frame (with PNG writing), dynamic pixels/frame "
+              << s.dynamic_pixels / s.frames << "\n";
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "ds3d-synth: error: " << e.what() << "\n";
+    return 1;
+  }
+}

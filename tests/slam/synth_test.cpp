@@ -1,0 +1,233 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// Synthetic dynamic RGB-D generator: determinism, masks vs boxes, depth model, ORB texture,
+// camera trajectories, the written TUM folder.
+#include "ds3d/synth.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <unistd.h>
+#include <string>
+
+#include <opencv2/features2d.hpp>
+
+#include "ds3d/dataset.hpp"
+#include "ds3d/detail/json.hpp"
+#include "ds3d/trajectory_metrics.hpp"
+#include "support/files.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ds3d::synth::Scenario;
+using ds3d::synth::SynthOptions;
+using ds3d::synth::SyntheticScene;
+
+bool same(const cv::Mat& a, const cv::Mat& b) {
+  return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0;
+}
+
+TEST(Synth, DeterministicBySeed) {
+  const SyntheticScene a({.scenario = Scenario::kWalkingXyz, .num_frames = 5, .seed = 7});
+  const SyntheticScene b({.scenario = Scenario::kWalkingXyz, .num_frames = 5, .seed = 7});
+  const SyntheticScene c({.scenario = Scenario::kWalkingXyz, .num_frames = 5, .seed = 8});
+  const auto fa = a.render(4);
+  const auto fb = b.render(4);
+  EXPECT_TRUE(same(fa.rgb, fb.rgb));
+  EXPECT_TRUE(same(fa.depth, fb.depth));
+  EXPECT_TRUE(same(fa.dynamic_mask, fb.dynamic_mask));
+  EXPECT_FALSE(same(fa.rgb, c.render(4).rgb));
+  EXPECT_THROW((void)a.render(5), ds3d::InvalidArgument);
+}
+
+TEST(Synth, RejectsBadOptions) {
+  EXPECT_THROW(SyntheticScene({.num_frames = 0}), ds3d::InvalidArgument);
+  EXPECT_THROW(SyntheticScene({.num_humans = 5}), ds3d::InvalidArgument);
+  EXPECT_THROW(SyntheticScene({.fps = 0}), ds3d::InvalidArgument);
+  SynthOptions o;
+  o.camera.k1 = 0.1;
+  EXPECT_THROW(SyntheticScene{o}, ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::synth::parse_scenario("walking"), ds3d::InvalidArgument);
+  for (const char* n : {"static_room", "walking_static", "walking_xyz", "walking_halfsphere",
+                        "walking_rpy", "sitting_static", "sitting_xyz"}) {
+    EXPECT_EQ(ds3d::synth::scenario_name(ds3d::synth::parse_scenario(n)), n);
+  }
+}
+
+TEST(Synth, MasksMatchHumansAndBoxes) {
+  const SynthOptions opt{.scenario = Scenario::kWalkingStatic, .num_frames = 40, .seed = 3, .num_humans = 3};
+  const SyntheticScene scene(opt);
+  for (const std::size_t i : {std::size_t{0}, std::size_t{39}}) {
+    const auto f = scene.render(i);
+    ASSERT_EQ(f.boxes.size(), 3U);
+    cv::Mat from_ids;
+    cv::compare(f.human_id, 0, from_ids, cv::CMP_GT);
+    EXPECT_TRUE(same(from_ids, f.dynamic_mask));
+    int total = 0;
+    for (const auto& b : f.boxes) {
+      total += b.visible_pixels;
+      EXPECT_GT(b.size.z(), 1.4);  // standing humans, 1.55-1.95 m
+      EXPECT_LT(b.size.z(), 2.1);
+      EXPECT_FALSE(b.sitting);
+    }
+    EXPECT_EQ(total, cv::countNonZero(f.dynamic_mask));
+    EXPECT_GT(total, 1000);
+    // Every human pixel, back-projected with the true depth, lies inside its own box.
+    const cv::Mat loc = ds3d::synth::part_locations(f, opt.camera);
+    int outside = 0;
+    for (int y = 0; y < loc.rows; ++y) {
+      for (int x = 0; x < loc.cols; ++x) {
+        const auto h = f.human_id.at<std::uint8_t>(y, x);
+        if (h == 0) continue;
+        const auto& b = f.boxes[h - 1U];
+        const Eigen::Vector3d pw =
+            f.T_world_cam * opt.camera.back_project(x, y, f.depth_true.at<float>(y, x));
+        const Eigen::Vector3d local = Eigen::AngleAxisd(-b.yaw, Eigen::Vector3d::UnitZ()) * (pw - b.center);
+        if ((local.cwiseAbs() - 0.5 * b.size).maxCoeff() > 0.01) ++outside;
+        const cv::Vec3f l = loc.at<cv::Vec3f>(y, x);
+        for (int k = 0; k < 3; ++k) {
+          EXPECT_GE(l[k], 0.0F);
+          EXPECT_LE(l[k], 1.0F);
+        }
+      }
+    }
+    EXPECT_EQ(outside, 0);
+    // Every part id is a human part, and only on human pixels.
+    double max_part = 0;
+    cv::minMaxLoc(f.part_id, nullptr, &max_part);
+    EXPECT_LE(max_part, 10.0);
+    EXPECT_EQ(cv::countNonZero(f.part_id), total);
+  }
+}
+
+TEST(Synth, StaticRoomHasNoHumansAndSittingHumansSit) {
+  const auto f = SyntheticScene({.scenario = Scenario::kStaticRoom, .num_frames = 1}).render(0);
+  EXPECT_TRUE(f.boxes.empty());
+  EXPECT_EQ(cv::countNonZero(f.dynamic_mask), 0);
+  const SyntheticScene sit({.scenario = Scenario::kSittingStatic, .num_frames = 60, .seed = 2});
+  const auto a = sit.render(0);
+  const auto b = sit.render(59);
+  ASSERT_EQ(a.boxes.size(), 2U);
+  for (std::size_t k = 0; k < 2; ++k) {
+    EXPECT_TRUE(a.boxes[k].sitting);
+    EXPECT_LT(a.boxes[k].size.z(), 1.5);                              // seated: lower box
+    EXPECT_LT((a.boxes[k].center - b.boxes[k].center).norm(), 0.15);  // moves only a little
+    EXPECT_GT(a.boxes[k].visible_pixels, 500);
+  }
+}
+
+TEST(Synth, KinectLikeDepth) {
+  const SyntheticScene exact({.scenario = Scenario::kWalkingXyz, .num_frames = 1, .seed = 4, .depth_noise = false});
+  const SyntheticScene noisy({.scenario = Scenario::kWalkingXyz, .num_frames = 1, .seed = 4});
+  const auto fe = exact.render(0);
+  const auto fn = noisy.render(0);
+  double sum_sq_norm = 0;
+  int n = 0;
+  int holes_valid = 0;
+  for (int y = 0; y < fe.depth.rows; ++y) {
+    for (int x = 0; x < fe.depth.cols; ++x) {
+      const float zt = fe.depth_true.at<float>(y, x);
+      ASSERT_GT(zt, 0.0F);  // closed room: every pixel hits something
+      EXPECT_NEAR(fe.depth.at<std::uint16_t>(y, x) / 5000.0, zt, 1.01e-4);
+      const auto d = fn.depth.at<std::uint16_t>(y, x);
+      if (d == 0) {
+        if (zt <= 4.5F) ++holes_valid;
+        continue;
+      }
+      EXPECT_LE(zt, 4.5F);
+      const double z = d / 5000.0;
+      const double sigma = 1.425e-3 * zt * zt;
+      // noise plus 1/8-pixel disparity quantisation (step z^2 / (8 * 0.075 * 525))
+      const double q = zt * zt / (8 * 0.075 * 525.0);
+      sum_sq_norm += (z - zt) * (z - zt) / (sigma * sigma + q * q / 12);
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 200000);
+  EXPECT_NEAR(std::sqrt(sum_sq_norm / n), 1.0, 0.15);  // the error has the modelled spread
+  EXPECT_GT(holes_valid, 200);                         // holes at depth edges
+  EXPECT_LT(holes_valid, 640 * 480 / 10);
+}
+
+TEST(Synth, TexturedEnoughForOrb) {
+  const auto f = SyntheticScene({.scenario = Scenario::kStaticRoom, .num_frames = 1, .seed = 9}).render(0);
+  std::vector<cv::KeyPoint> kps;
+  cv::ORB::create(1000)->detect(f.rgb, kps);
+  EXPECT_GE(kps.size(), 900U);
+  // spread over the image: every quadrant has features
+  int quad[4] = {0, 0, 0, 0};
+  for (const auto& k : kps) ++quad[(k.pt.x > 320 ? 1 : 0) + (k.pt.y > 240 ? 2 : 0)];
+  for (const int q : quad) EXPECT_GT(q, 50);
+}
+
+TEST(Synth, CameraTrajectoriesMoveAsNamed) {
+  const auto motion = [](Scenario s) {
+    const SyntheticScene sc({.scenario = s, .num_frames = 1});
+    double max_t = 0;
+    double max_r = 0;
+    const Eigen::Isometry3d p0 = sc.camera_pose(sc.timestamp(0));
+    for (double t = 0; t < 12; t += 0.1) {
+      const Eigen::Isometry3d d = p0.inverse() * sc.camera_pose(sc.timestamp(0) + t);
+      max_t = std::max(max_t, d.translation().norm());
+      max_r = std::max(max_r, Eigen::AngleAxisd(d.linear()).angle());
+    }
+    return std::pair{max_t, max_r};
+  };
+  EXPECT_LT(motion(Scenario::kWalkingStatic).first, 0.02);
+  EXPECT_LT(motion(Scenario::kWalkingStatic).second, 0.02);
+  EXPECT_GT(motion(Scenario::kWalkingXyz).first, 0.3);
+  EXPECT_LT(motion(Scenario::kWalkingXyz).second, 0.02);
+  EXPECT_GT(motion(Scenario::kWalkingRpy).second, 0.4);
+  EXPECT_LT(motion(Scenario::kWalkingRpy).first, 0.02);
+  EXPECT_GT(motion(Scenario::kWalkingHalfsphere).first, 0.5);
+  EXPECT_GT(motion(Scenario::kWalkingHalfsphere).second, 0.5);
+}
+
+TEST(Synth, WritesATumFolderThatReadsBack) {
+  const fs::path dir = fs::temp_directory_path() / ("ds3d_synth_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const auto sum = ds3d::synth::generate_sequence(
+      dir, {.scenario = Scenario::kWalkingXyz, .num_frames = 6, .seed = 11, .write_parts = true});
+  EXPECT_EQ(sum.frames, 6U);
+  EXPECT_GT(sum.dynamic_pixels, 0U);
+  const auto ds = ds3d::RgbdDataset::open(dir);
+  ASSERT_EQ(ds.size(), 6U);
+  EXPECT_EQ(ds.camera().fx, 525.0);
+  const SyntheticScene scene({.scenario = Scenario::kWalkingXyz, .num_frames = 6, .seed = 11});
+  const auto f = ds.frame(3);
+  const auto r = scene.render(3);
+  EXPECT_TRUE(same(f.rgb, r.rgb));
+  EXPECT_TRUE(same(f.depth, r.depth));
+  // ground truth (100 Hz, analytic) covers the frames and agrees with the rendered poses
+  ASSERT_TRUE(ds.groundtruth_path().has_value());
+  const auto gt = ds3d::read_tum_trajectory(*ds.groundtruth_path());
+  ASSERT_GE(gt.size(), 20U);
+  EXPECT_LE(gt.front().timestamp, scene.timestamp(0));
+  EXPECT_GE(gt.back().timestamp, scene.timestamp(5));
+  for (const auto& p : gt) {
+    EXPECT_LT((p.T_world_cam.matrix() - scene.camera_pose(p.timestamp).matrix()).norm(), 1e-9);
+  }
+  EXPECT_TRUE(r.T_world_cam.isApprox(scene.camera_pose(scene.timestamp(3)), 1e-12));
+  // boxes.jsonl: one object per frame
+  const auto lines = ds3d::test::read_lines(dir / "boxes.jsonl");
+  ASSERT_EQ(lines.size(), 6U);
+  const auto j = ds3d::detail::parse_json(lines[3]);
+  EXPECT_EQ(j.at("frame").as_int(), 3);
+  EXPECT_EQ(j.at("boxes").size(), 2U);
+  EXPECT_EQ(j.at("boxes").at(0).at("visible_pixels").as_int(), r.boxes[0].visible_pixels);
+  // masks and parts written; no temporary files anywhere
+  for (const char* sub : {"mask", "parts", "parts_loc", "rgb", "depth"}) {
+    std::size_t n = 0;
+    for (const auto& e : fs::directory_iterator(dir / sub)) {
+      EXPECT_EQ(e.path().extension(), ".png") << e.path();
+      EXPECT_EQ(e.path().filename().string()[0] == '.', false) << e.path();
+      ++n;
+    }
+    EXPECT_EQ(n, 6U) << sub;
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
