@@ -42,6 +42,8 @@ void GeometricMotionParams::validate() const {
              box_margin, ")");
   DS3D_CHECK(std::isfinite(dense_factor) && dense_factor > 0, f, ": dense_factor must be > 0 (got ",
              dense_factor, ")");
+  DS3D_CHECK(std::isfinite(max_object_size) && max_object_size > 0, f,
+             ": max_object_size must be > 0 (got ", max_object_size, ")");
   DS3D_CHECK(hold_frames >= 0, f, ": hold_frames must be >= 0 (got ", hold_frames, ")");
   DS3D_CHECK(min_pose_inliers >= 6, f, ": min_pose_inliers must be >= 6 (got ", min_pose_inliers,
              ")");
@@ -89,6 +91,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   };
 
   std::vector<Eigen::Vector3d> flagged;  // (u, v, z) of moving evidence in the current frame
+  std::size_t num_keypoint_flags = 0;    // flagged[0, this) are keypoints, the rest warp pixels
   if (!history_.empty()) {
     const Past& ref = history_.front();
     const auto inside_held = [&](const Eigen::Vector3d& p_world) {
@@ -197,6 +200,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
           ++stats_.num_moving_keypoints;
         }
       }
+      num_keypoint_flags = flagged.size();
       // 4. Depth-warp consistency of a grid of the current depth against the reference.
       const Eigen::Isometry3d T_ref_cur = T_cur_ref.inverse();
       int valid = 0;
@@ -230,6 +234,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
         flagged.insert(flagged.end(), warp_flagged.begin(), warp_flagged.end());
       } else {
         flagged.clear();
+        num_keypoint_flags = 0;
         stats_.num_moving_keypoints = 0;
       }
     }
@@ -257,10 +262,19 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
       // its median core distance is within dense_factor grid steps at its depth.
       std::vector<double> core;
       std::vector<double> cz;
+      int keypoint_evidence = 0;
       for (std::size_t i = 0; i < flagged.size(); ++i) {
         if (h.labels[i] != c) continue;
         core.push_back(h.core_distances[i]);
         cz.push_back(flagged[i].z());
+        keypoint_evidence += i < num_keypoint_flags ? 1 : 0;
+      }
+      // Both kinds of evidence must agree: feature motion (reprojection / depth residuals) and
+      // free-space violation (depth warp). Each alone has its own false positives (descriptor
+      // mismatches; depth edges and sensor artefacts), which rarely coincide.
+      if (keypoint_evidence < params_.min_samples ||
+          static_cast<int>(core.size()) - keypoint_evidence < params_.min_samples) {
+        continue;
       }
       const auto mid = [](std::vector<double>& v) {
         std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
@@ -277,6 +291,9 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
         lo = lo.cwiseMin(p);
         hi = hi.cwiseMax(p);
       }
+      // Human-scale objects only: a larger cluster is static structure flagged by a wrong pose
+      // or a depth artefact, and its box would gate most of the image.
+      if ((hi - lo).maxCoeff() > params_.max_object_size) continue;
       lo.array() -= params_.box_margin;
       hi.array() += params_.box_margin;
       Held obj;

@@ -62,6 +62,8 @@ struct GeometricMotionParams {
   int min_cluster_size = 15;         ///< HDBSCAN min_cluster_size for objects, >= 2
   int min_samples = 5;               ///< HDBSCAN min_samples, >= 1
   double dense_factor = 3.0;  ///< clusters need median core distance <= this × grid step, > 0
+  double max_object_size =
+      2.5;                    ///< clusters larger than this in x, y or z are not objects [m], > 0
   float box_margin = 0.2F;    ///< object boxes grow by this in x, y and z [m], >= 0
   int hold_frames = 90;       ///< frames an object is kept after its last motion, >= 0
   int min_pose_inliers = 20;  ///< fewer PnP inliers: no motion test this frame, >= 6
