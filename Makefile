@@ -85,3 +85,29 @@ bench-compare:
 	cmake -S bench/compare -B $(COMPARE_DIR) -G $(GENERATOR) -DCMAKE_BUILD_TYPE=Release
 	cmake --build $(COMPARE_DIR) -j $(JOBS)
 	OMP_NUM_THREADS=1 $(COMPARE_DIR)/bin/compare_open3d_pcl $(COMPARE_ARGS)
+
+# ---- fuzzing (issue 5): libFuzzer targets tests/fuzz/*_fuzz.cpp, built with clang + ASan/UBSan
+# in build-fuzz/, each run for FUZZ_SECONDS (default 60) from a seed corpus of tests/data.
+FUZZ_DIR     ?= build-fuzz
+FUZZ_SECONDS ?= 60
+FUZZ_CXX     ?= clang++
+FUZZ_FLAGS   ?= -std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
+                -Iinclude -isystem /usr/include/eigen3 -isystem /usr/include/opencv4
+.PHONY: fuzz
+fuzz: deps
+	@mkdir -p $(FUZZ_DIR)/corpus_traj $(FUZZ_DIR)/corpus_list $(FUZZ_DIR)/corpus_camera
+	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/tum_trajectory_fuzz.cpp -o $(FUZZ_DIR)/tum_trajectory_fuzz
+	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/tum_list_fuzz.cpp -o $(FUZZ_DIR)/tum_list_fuzz
+	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/camera_fuzz.cpp src/dataset.cpp -o $(FUZZ_DIR)/camera_fuzz \
+	  -lopencv_core -lopencv_imgcodecs
+	@for d in tests/data/trajectory/*/; do head -c 4000 $$d/estimate.txt > $(FUZZ_DIR)/corpus_traj/$$(basename $$d); done
+	@printf '# rgb\n1305031102.175304 rgb/1.png\n1305031102.211214,rgb/2.jpg\r\n' > $(FUZZ_DIR)/corpus_list/seed
+	@cp tests/data/dataset/*.txt $(FUZZ_DIR)/corpus_camera/
+	$(FUZZ_DIR)/tum_trajectory_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=8192 $(FUZZ_DIR)/corpus_traj
+	$(FUZZ_DIR)/tum_list_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=4096 $(FUZZ_DIR)/corpus_list
+	$(FUZZ_DIR)/camera_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=2048 $(FUZZ_DIR)/corpus_camera
+	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/weights_io_fuzz.cpp src/weights_io.cpp src/sparse_detector.cpp \
+	  -o $(FUZZ_DIR)/weights_io_fuzz
+	@mkdir -p $(FUZZ_DIR)/corpus_weights && cp tests/data/htx/*.safetensors $(FUZZ_DIR)/corpus_weights/
+	$(FUZZ_DIR)/weights_io_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=65536 $(FUZZ_DIR)/corpus_weights
+	@echo "make fuzz: no crash in $(FUZZ_SECONDS) s per target"

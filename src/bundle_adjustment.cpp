@@ -271,7 +271,7 @@ PoseOptimizationResult optimize_pose(const StereoIntrinsics& k, const Eigen::Iso
   ceres::HuberLoss huber_stereo(std::sqrt(params.chi2_stereo));
   Params7 x = to_params(initial);
   std::vector<std::uint8_t> inl(n, 1);
-  const auto options = solver_options(params.iterations, ceres::DENSE_QR);
+  const auto options = solver_options(params.iterations, ceres::DENSE_NORMAL_CHOLESKY);
   for (int round = 0; round < params.rounds; ++round) {
     ceres::Problem problem(problem_options());
     problem.AddParameterBlock(x.data(), 7, &manifold);

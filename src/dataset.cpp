@@ -132,8 +132,7 @@ RgbdDataset RgbdDataset::open(const fs::path& dir, const DatasetOptions& options
   DS3D_CHECK(std::isfinite(options.offset), kFn, ": offset must be finite (got ", options.offset,
              ")");
   std::error_code ec;
-  DS3D_CHECK_AS(IoError, fs::is_directory(dir, ec), kFn, ": not a directory: '", dir.string(),
-                "'");
+  DS3D_CHECK_AS(IoError, fs::is_directory(dir, ec), kFn, ": not a directory: '", dir.string(), "'");
   const auto read_list = [&](const char* name) {
     const fs::path p = dir / name;
     DS3D_CHECK_AS(IoError, fs::is_regular_file(p, ec), kFn, ": missing list '", p.string(), "'");
@@ -168,8 +167,7 @@ std::size_t RgbdDataset::size() const { return entries_.size(); }
 
 RgbdFrame RgbdDataset::frame(std::size_t i) const {
   constexpr const char* kFn = "ds3d::RgbdDataset::frame";
-  DS3D_CHECK(i < entries_.size(), kFn, ": index ", i, " out of range (size ", entries_.size(),
-             ")");
+  DS3D_CHECK(i < entries_.size(), kFn, ": index ", i, " out of range (size ", entries_.size(), ")");
   const RgbdEntry& e = entries_[i];
   RgbdFrame f;
   f.index = i;
@@ -180,8 +178,8 @@ RgbdFrame RgbdDataset::frame(std::size_t i) const {
   f.rgb = cv::imread(rgb_path.string(), cv::IMREAD_COLOR);
   DS3D_CHECK_AS(IoError, !f.rgb.empty(), kFn, ": cannot read rgb image '", rgb_path.string(), "'");
   f.depth = cv::imread(depth_path.string(), cv::IMREAD_UNCHANGED);
-  DS3D_CHECK_AS(IoError, !f.depth.empty(), kFn, ": cannot read depth image '",
-                depth_path.string(), "'");
+  DS3D_CHECK_AS(IoError, !f.depth.empty(), kFn, ": cannot read depth image '", depth_path.string(),
+                "'");
   DS3D_CHECK_AS(IoError, f.depth.type() == CV_16UC1, kFn, ": depth image '", depth_path.string(),
                 "' must be 16-bit single-channel (got ", f.depth.elemSize1() * 8, "-bit, ",
                 f.depth.channels(), " channel(s)); an 8-bit depth image has lost its scale");

@@ -144,6 +144,8 @@ void OrbParams::validate() const {
              max_depth, ")");
   DS3D_CHECK(std::isfinite(min_depth) && min_depth >= 0 && min_depth < max_depth, f,
              ": min_depth must be in [0, max_depth) (got ", min_depth, ")");
+  DS3D_CHECK(std::isfinite(max_range) && max_range >= max_depth, f,
+             ": max_range must be >= max_depth (got ", max_range, ")");
 }
 
 OrbExtractor::OrbExtractor(const OrbParams& params) : params_(params) {
@@ -216,6 +218,7 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
     orb->compute(gray, keypoints, out.descriptors);
   }
   out.keypoints = std::move(keypoints);
+  out.close_depth = static_cast<float>(params_.max_depth);
   const std::size_t n = out.keypoints.size();
   out.undistorted.resize(n);
   out.depth.assign(n, 0.0F);
@@ -228,7 +231,7 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
       const int x = std::clamp(static_cast<int>(std::lround(pt.x)), 0, depth.cols - 1);
       const int y = std::clamp(static_cast<int>(std::lround(pt.y)), 0, depth.rows - 1);
       const double z = depth.at<std::uint16_t>(y, x) / camera.depth_scale;
-      if (z >= params_.min_depth && z <= params_.max_depth) out.depth[i] = static_cast<float>(z);
+      if (z >= params_.min_depth && z <= params_.max_range) out.depth[i] = static_cast<float>(z);
     }
   }
   return out;

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <ctime>
 #include <fstream>
 #include <future>
 #include <limits>
@@ -25,6 +26,12 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+// CPU time of the calling thread [ms] (POSIX).
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
 }
 
 constexpr int kThHigh = 100;  // ORB-SLAM2's ORBmatcher::TH_HIGH
@@ -96,6 +103,7 @@ struct MapPoint {
 
 // Shared per-keypoint data of frames and keyframes.
 struct FrameData {
+  float close_depth = 3.0F;
   std::vector<Eigen::Vector2f> uv;
   std::vector<float> depth;
   std::vector<int> octave;
@@ -103,6 +111,7 @@ struct FrameData {
   std::vector<int> points;  // map point id or -1
   FeatureGrid grid;
   [[nodiscard]] std::size_t size() const { return uv.size(); }
+  [[nodiscard]] bool is_close(std::size_t i) const { return depth[i] > 0 && depth[i] <= close_depth; }
   [[nodiscard]] double u_right(std::size_t i, double bf) const {
     return depth[i] > 0 ? uv[i].x() - bf / depth[i] : -1.0;
   }
@@ -289,6 +298,7 @@ struct SlamFrontend::Impl {
   FrameData make_frame_data(const PreparedFrame& pf) const {
     FrameData f;
     const auto& feat = pf.features;
+    f.close_depth = feat.close_depth;
     for (std::size_t i = 0; i < feat.size(); ++i) {
       if (!pf.dynamic.empty() && pf.dynamic[i] != 0) continue;
       f.uv.push_back(feat.undistorted[i]);
@@ -589,7 +599,7 @@ struct SlamFrontend::Impl {
     int tracked_close = 0;
     int untracked_close = 0;
     for (std::size_t i = 0; i < f.size(); ++i) {
-      if (f.depth[i] <= 0) continue;
+      if (!f.is_close(i)) continue;
       if (f.points[i] >= 0) {
         ++tracked_close;
       } else {
@@ -618,15 +628,26 @@ struct SlamFrontend::Impl {
     Keyframe& K = keyframes.back();
     const Eigen::Isometry3d T_wc = T_cw.inverse();
     for (std::size_t i = 0; i < K.data.size(); ++i) {
-      int pid = K.data.points[i];
-      if (pid >= 0) {
-        MapPoint& p = points[static_cast<std::size_t>(pid)];
-        p.obs.emplace_back(K.id, static_cast<int>(i));
-        update_point_geometry(p);
-        update_point_descriptor(p);
-        continue;
-      }
-      if (K.data.depth[i] <= 0) continue;
+      const int pid = K.data.points[i];
+      if (pid < 0) continue;
+      MapPoint& p = points[static_cast<std::size_t>(pid)];
+      p.obs.emplace_back(K.id, static_cast<int>(i));
+      update_point_geometry(p);
+      update_point_descriptor(p);
+    }
+    // New points from depth (ORB-SLAM2's CreateNewKeyFrame): by increasing depth, every close
+    // keypoint, and far ones until 100 keypoints have points. The first keyframe uses them all.
+    std::vector<std::pair<float, std::size_t>> by_depth;
+    for (std::size_t i = 0; i < K.data.size(); ++i) {
+      if (K.data.depth[i] > 0) by_depth.emplace_back(K.data.depth[i], i);
+    }
+    std::stable_sort(by_depth.begin(), by_depth.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    int n_points = 0;
+    for (const auto& [depth_i, i] : by_depth) {
+      if (K.id > 0 && depth_i > K.data.close_depth && n_points > 100) break;
+      ++n_points;
+      if (K.data.points[i] >= 0) continue;
+      int pid = -1;
       MapPoint p;
       const double z = K.data.depth[i];
       const Eigen::Vector3d pc((K.data.uv[i].x() - k.cx) / k.fx * z, (K.data.uv[i].y() - k.cy) / k.fy * z, z);
@@ -771,9 +792,9 @@ struct SlamFrontend::Impl {
     job.due_frame = frame_counter + static_cast<std::size_t>(cfg.ba_apply_lag);
     auto work = [k = k, poses = std::move(poses), fixed = std::move(fixed), pos = std::move(pos),
                  obs = job.observations, params]() {
-      const auto t0 = Clock::now();
+      const double c0 = thread_cpu_ms();
       auto r = local_bundle_adjustment(k, poses, fixed, pos, obs, params);
-      return std::make_pair(std::move(r), ms_since(t0));
+      return std::make_pair(std::move(r), thread_cpu_ms() - c0);
     };
     if (async) {
       job.result = std::async(std::launch::async, std::move(work));
@@ -814,6 +835,7 @@ struct SlamFrontend::Impl {
   // ---- per frame -----------------------------------------------------------------------------
   TrackResult track(PreparedFrame pf) {
     const auto t0 = Clock::now();
+    const double c0 = thread_cpu_ms();
     const FrameInput& in = pf.input;
     DS3D_CHECK(std::isfinite(in.timestamp), "ds3d::slam::SlamFrontend::track: timestamp must be finite (got ",
                in.timestamp, ")");
@@ -926,6 +948,7 @@ struct SlamFrontend::Impl {
     ++frame_counter;
     res.times = pf.times;
     res.times.track_ms = ms_since(t0);
+    res.times.track_cpu_ms = thread_cpu_ms() - c0;
     return res;
   }
 };
@@ -939,10 +962,12 @@ SlamFrontend& SlamFrontend::operator=(SlamFrontend&&) noexcept = default;
 
 PreparedFrame SlamFrontend::extract(FrameInput frame) const {
   const auto t0 = Clock::now();
+  const double c0 = thread_cpu_ms();
   PreparedFrame pf;
   pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera);
   pf.input = std::move(frame);
   pf.times.extract_ms = ms_since(t0);
+  pf.times.extract_cpu_ms = thread_cpu_ms() - c0;
   return pf;
 }
 

@@ -18,6 +18,16 @@
 
 namespace ds3d {
 
+// The selection steps (FPS, ball query, 3-NN) must round exactly like the PyTorch reference, which
+// multiplies and adds in separate kernels: forbid GCC from contracting them into FMAs when the
+// build enables FMA (-mfma, -march=native). Clang contracts only within one expression, and every
+// product here is its own statement.
+#if defined(__GNUC__) && !defined(__clang__)
+#define DS3D_NO_FP_CONTRACT __attribute__((optimize("fp-contract=off")))
+#else
+#define DS3D_NO_FP_CONTRACT
+#endif
+
 using Mat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 using Vec = Eigen::VectorXf;
 using RowVec = Eigen::RowVectorXf;
@@ -104,7 +114,8 @@ float sigmoid(float x) { return 1.0F / (1.0F + std::exp(-x)); }
 
 // FPS of k indices over rows of p (spec §3.2); float32 expressions identical to ops.py.
 // Non-candidates (padding) carry distance -1 forever: min(-1, d2) = -1 never beats best_d = -1.
-std::vector<std::int32_t> farthest_point_sample(const Mat& p, Eigen::Index k, float padding_norm2) {
+DS3D_NO_FP_CONTRACT std::vector<std::int32_t> farthest_point_sample(const Mat& p, Eigen::Index k,
+                                                                   float padding_norm2) {
   const Eigen::Index n = p.rows();
   std::vector<std::int32_t> out(static_cast<std::size_t>(k), 0);
   if (n == 0 || k == 0) return out;
@@ -121,13 +132,13 @@ std::vector<std::int32_t> farthest_point_sample(const Mat& p, Eigen::Index k, fl
   float* pd = dist.data();
   for (Eigen::Index i = 1; i < k; ++i) {
     const float lx = px[last], ly = py[last], lz = pz[last];
-    float best_d = -1.0F;
-    for (Eigen::Index j = 0; j < n; ++j) {  // vectorisable: no branch
+    for (Eigen::Index j = 0; j < n; ++j) {  // branch-free: vectorised (blend, no FMA)
       const float dx = px[j] - lx, dy = py[j] - ly, dz = pz[j] - lz;
       const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
-      pd[j] = std::min(pd[j], (xx + yy) + zz);
-      best_d = std::max(best_d, pd[j]);
+      const float d2 = (xx + yy) + zz;
+      pd[j] = d2 < pd[j] ? d2 : pd[j];
     }
+    const float best_d = std::max(-1.0F, dist.maxCoeff());  // Eigen's vectorised reduction
     Eigen::Index best = 0;
     if (best_d >= 0.0F) {
       while (pd[best] != best_d) ++best;  // lowest index holding the maximum
@@ -136,6 +147,130 @@ std::vector<std::int32_t> farthest_point_sample(const Mat& p, Eigen::Index k, fl
     out[static_cast<std::size_t>(i)] = static_cast<std::int32_t>(best);
   }
   return out;
+}
+
+// Ball query "first s by index" (strict <) around every centre: the offsets / r of the distinct
+// samples, group i in rows [begin[i], begin[i+1]). The reference repeats the first index in empty
+// slots; a repeated row cannot change a max-pool, so only distinct samples are returned.
+// Candidates come from a uniform grid of cell size slightly above r (27 cells per centre, each
+// cell's points in index order); their distances use the reference's float expression, and the
+// first s by index are kept, so the result equals the brute-force scan. Clouds whose bounding box
+// would need a huge grid fall back to that scan.
+DS3D_NO_FP_CONTRACT Mat ball_group(const Mat& p, const Mat& centres, float r, Eigen::Index s,
+                                   std::vector<Eigen::Index>& begin) {
+  const Eigen::Index t = centres.rows();
+  const Eigen::Index n = p.rows();
+  const float r2 = r * r;
+  begin.assign(static_cast<std::size_t>(t) + 1, 0);
+  Mat grouped(t * s, 3);
+  Eigen::Index rows = 0;
+  auto take = [&](Eigen::Index i, Eigen::Index j) {
+    grouped.row(rows++) = (p.row(j) - centres.row(i)) / r;
+  };
+  const Eigen::RowVector3f lo = p.colwise().minCoeff();
+  const Eigen::RowVector3f hi = p.colwise().maxCoeff();
+  const float cell = r * 1.001F;  // margin against rounding in the cell index
+  Eigen::Array3i dims;
+  double num_cells = 1.0;
+  for (int a = 0; a < 3; ++a) {
+    const double cells = std::floor(static_cast<double>(hi[a] - lo[a]) / cell) + 1.0;
+    dims[a] = static_cast<int>(std::min(cells, 1e6));
+    num_cells *= cells;
+  }
+  if (num_cells > 4.0 * static_cast<double>(n) + 4096.0) {  // sparse outliers: brute force
+    for (Eigen::Index i = 0; i < t; ++i) {
+      const float cx = centres(i, 0), cy = centres(i, 1), cz = centres(i, 2);
+      Eigen::Index found = 0;
+      for (Eigen::Index j = 0; j < n && found < s; ++j) {
+        const float dx = cx - p(j, 0), dy = cy - p(j, 1), dz = cz - p(j, 2);
+        const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
+        if ((xx + yy) + zz < r2) {
+          take(i, j);
+          ++found;
+        }
+      }
+      begin[static_cast<std::size_t>(i) + 1] = rows;
+    }
+    grouped.conservativeResize(rows, 3);
+    return grouped;
+  }
+  auto cell_of = [&](float v, int a) {
+    return std::clamp(static_cast<int>((v - lo[a]) / cell), 0, dims[a] - 1);
+  };
+  const auto total = static_cast<std::size_t>(dims[0]) * static_cast<std::size_t>(dims[1]) *
+                     static_cast<std::size_t>(dims[2]);
+  // Counting sort of points by cell: stable, so every cell lists its points in index order.
+  std::vector<std::int32_t> start(total + 1, 0);
+  std::vector<std::int32_t> key(static_cast<std::size_t>(n));
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const auto kx = static_cast<std::size_t>(cell_of(p(j, 0), 0));
+    const auto ky = static_cast<std::size_t>(cell_of(p(j, 1), 1));
+    const auto kz = static_cast<std::size_t>(cell_of(p(j, 2), 2));
+    const std::size_t k = (kx * static_cast<std::size_t>(dims[1]) + ky) * static_cast<std::size_t>(dims[2]) + kz;
+    key[static_cast<std::size_t>(j)] = static_cast<std::int32_t>(k);
+    ++start[k + 1];
+  }
+  for (std::size_t k = 0; k < total; ++k) start[k + 1] += start[k];
+  std::vector<std::int32_t> order(static_cast<std::size_t>(n));
+  {
+    std::vector<std::int32_t> fill(start.begin(), start.end() - 1);
+    for (Eigen::Index j = 0; j < n; ++j) {
+      order[static_cast<std::size_t>(fill[static_cast<std::size_t>(key[static_cast<std::size_t>(j)])]++)] =
+          static_cast<std::int32_t>(j);
+    }
+  }
+  std::vector<std::int32_t> cand;
+  for (Eigen::Index i = 0; i < t; ++i) {
+    const float cx = centres(i, 0), cy = centres(i, 1), cz = centres(i, 2);
+    const int gx = cell_of(cx, 0), gy = cell_of(cy, 1), gz = cell_of(cz, 2);
+    cand.clear();
+    for (int x = std::max(gx - 1, 0); x <= std::min(gx + 1, dims[0] - 1); ++x) {
+      for (int y = std::max(gy - 1, 0); y <= std::min(gy + 1, dims[1] - 1); ++y) {
+        for (int z = std::max(gz - 1, 0); z <= std::min(gz + 1, dims[2] - 1); ++z) {
+          const std::size_t k = (static_cast<std::size_t>(x) * static_cast<std::size_t>(dims[1]) +
+                                 static_cast<std::size_t>(y)) * static_cast<std::size_t>(dims[2]) +
+                                static_cast<std::size_t>(z);
+          for (std::int32_t q = start[k]; q < start[k + 1]; ++q) {
+            const std::int32_t j = order[static_cast<std::size_t>(q)];
+            const float dx = cx - p(j, 0), dy = cy - p(j, 1), dz = cz - p(j, 2);
+            const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
+            if ((xx + yy) + zz < r2) cand.push_back(j);
+          }
+        }
+      }
+    }
+    const auto keep = std::min<std::size_t>(cand.size(), static_cast<std::size_t>(s));
+    std::partial_sort(cand.begin(), cand.begin() + static_cast<std::ptrdiff_t>(keep), cand.end());
+    for (std::size_t q = 0; q < keep; ++q) take(i, cand[q]);
+    begin[static_cast<std::size_t>(i) + 1] = rows;
+  }
+  grouped.conservativeResize(rows, 3);
+  return grouped;
+}
+
+// The 3 nearest tokens of point (x, y, z) (lowest index first on ties) and their squared
+// distances; k = min(3, tokens) entries are valid.
+DS3D_NO_FP_CONTRACT void three_nn(const Mat& tokens, float x, float y, float z, Eigen::Index k,
+                                  Eigen::Index idx[3], float dist[3]) {
+  for (int m = 0; m < 3; ++m) {
+    idx[m] = 0;
+    dist[m] = INFINITY;
+  }
+  for (Eigen::Index j = 0; j < tokens.rows(); ++j) {
+    const float dx = x - tokens(j, 0), dy = y - tokens(j, 1), dz = z - tokens(j, 2);
+    const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
+    const float d2 = (xx + yy) + zz;
+    if (d2 < dist[k - 1]) {  // insert, keeping earlier (lower-index) entries first on ties
+      Eigen::Index m = k - 1;
+      while (m > 0 && d2 < dist[m - 1]) {
+        dist[m] = dist[m - 1];
+        idx[m] = idx[m - 1];
+        --m;
+      }
+      dist[m] = d2;
+      idx[m] = j;
+    }
+  }
 }
 
 int get_int(const detail::JsonValue& o, const char* key) {
@@ -457,34 +592,21 @@ DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectO
   out.centre_indices = farthest_point_sample(p, t, c.fps_padding_norm2);
   Mat centres(t, 3);  // [t, 3]
   for (Eigen::Index i = 0; i < t; ++i) centres.row(i) = p.row(out.centre_indices[static_cast<std::size_t>(i)]);
-  const Eigen::Index s = c.sa_samples;
-  const float r = c.sa_radius;
-  const float r2 = r * r;
-  // Ball query "first s by index". Empty slots repeat the first index in the reference; a
-  // repeated row cannot change a max-pool, so only the distinct samples are pushed through the MLP.
-  std::vector<Eigen::Index> group_begin(static_cast<std::size_t>(t) + 1, 0);
-  Mat grouped(t * s, 3);  // [<= t * s, 3] offsets / r
-  Eigen::Index rows = 0;
-  for (Eigen::Index i = 0; i < t; ++i) {
-    const float cx = centres(i, 0), cy = centres(i, 1), cz = centres(i, 2);
-    Eigen::Index found = 0;
-    for (Eigen::Index j = 0; j < n && found < s; ++j) {
-      const float dx = cx - p(j, 0), dy = cy - p(j, 1), dz = cz - p(j, 2);
-      const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
-      if ((xx + yy) + zz < r2) {
-        grouped.row(rows++) = (p.row(j) - centres.row(i)) / r;
-        ++found;
-      }
-    }
-    group_begin[static_cast<std::size_t>(i) + 1] = rows;
-  }
-  Mat x = grouped.topRows(rows);
-  for (const auto& l : w.sa_mlp) x = linear_relu(x, l);  // [rows, d]
+  std::vector<Eigen::Index> group_begin;
+  const Mat grouped = ball_group(p, centres, c.sa_radius, c.sa_samples, group_begin);  // [samples, 3]
   const Eigen::Index d = c.d_model;
   Mat feats(t, d);  // [t, d]
-  for (Eigen::Index i = 0; i < t; ++i) {
-    const Eigen::Index b = group_begin[static_cast<std::size_t>(i)];
-    feats.row(i) = x.middleRows(b, group_begin[static_cast<std::size_t>(i) + 1] - b).colwise().maxCoeff();
+  // Shared MLP + max-pool in chunks of centres, so the [samples, 128] activations stay in cache.
+  constexpr Eigen::Index kChunk = 32;
+  for (Eigen::Index c0 = 0; c0 < t; c0 += kChunk) {
+    const Eigen::Index c1 = std::min(t, c0 + kChunk);
+    const Eigen::Index r0 = group_begin[static_cast<std::size_t>(c0)];
+    Mat x = grouped.middleRows(r0, group_begin[static_cast<std::size_t>(c1)] - r0);
+    for (const auto& l : w.sa_mlp) x = linear_relu(x, l);  // [chunk samples, d]
+    for (Eigen::Index i = c0; i < c1; ++i) {
+      const Eigen::Index b = group_begin[static_cast<std::size_t>(i)] - r0;
+      feats.row(i) = x.middleRows(b, group_begin[static_cast<std::size_t>(i) + 1] - r0 - b).colwise().maxCoeff();
+    }
   }
 
   // ---- encoder ----------------------------------------------------------------------------
@@ -582,23 +704,9 @@ DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectO
     const Eigen::Index k = std::min<Eigen::Index>(3, t);
     Mat hidden(n, c.part_hidden);
     for (Eigen::Index i = 0; i < n; ++i) {
-      Eigen::Index idx[3] = {0, 0, 0};
-      float dist[3] = {INFINITY, INFINITY, INFINITY};
-      for (Eigen::Index j = 0; j < t; ++j) {
-        const float dx = p(i, 0) - centres(j, 0), dy = p(i, 1) - centres(j, 1), dz = p(i, 2) - centres(j, 2);
-        const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
-        const float d2 = (xx + yy) + zz;
-        if (d2 < dist[k - 1]) {  // insert, keeping earlier (lower-index) entries first on ties
-          Eigen::Index m = k - 1;
-          while (m > 0 && d2 < dist[m - 1]) {
-            dist[m] = dist[m - 1];
-            idx[m] = idx[m - 1];
-            --m;
-          }
-          dist[m] = d2;
-          idx[m] = j;
-        }
-      }
+      Eigen::Index idx[3];
+      float dist[3];
+      three_nn(centres, p(i, 0), p(i, 1), p(i, 2), k, idx, dist);
       float wt[3] = {0.0F, 0.0F, 0.0F};
       float wsum = 0.0F;
       for (Eigen::Index m = 0; m < k; ++m) {

@@ -51,8 +51,8 @@ struct Mesh {
   std::uint8_t part = 0;   // 0 static, 1..10
 };
 
-void add_quad(Mesh& m, const Eigen::Vector3f& o, const Eigen::Vector3f& e1, const Eigen::Vector3f& e2,
-              float density) {
+void add_quad(Mesh& m, const Eigen::Vector3f& o, const Eigen::Vector3f& e1,
+              const Eigen::Vector3f& e2, float density) {
   const auto base = static_cast<std::uint32_t>(m.pos.size());
   const float l1 = e1.norm() * density;
   const float l2 = e2.norm() * density;
@@ -89,7 +89,8 @@ void add_round(Mesh& m, const Eigen::Vector3f& a, const Eigen::Matrix3f& rot, fl
   for (int k = 0; k <= kLat + 1; ++k) {
     const int kk = k <= kLat / 2 ? k : k - 1;
     const float shift = k <= kLat / 2 ? 0.0F : len;
-    const float lat = -static_cast<float>(kPi) / 2 + static_cast<float>(kk) * static_cast<float>(kPi) / kLat;
+    const float lat =
+        -static_cast<float>(kPi) / 2 + static_cast<float>(kk) * static_cast<float>(kPi) / kLat;
     for (int j = 0; j <= kLon; ++j) {
       const float lon = 2 * static_cast<float>(kPi) * static_cast<float>(j) / kLon;
       const Eigen::Vector3f local(semi.x() * std::cos(lat) * std::cos(lon),
@@ -115,7 +116,8 @@ void add_round(Mesh& m, const Eigen::Vector3f& a, const Eigen::Matrix3f& rot, fl
 // Frame whose z axis is `dir` (unit).
 Eigen::Matrix3f frame_z(const Eigen::Vector3f& dir) {
   const Eigen::Vector3f z = dir.normalized();
-  const Eigen::Vector3f helper = std::abs(z.x()) < 0.9F ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY();
+  const Eigen::Vector3f helper =
+      std::abs(z.x()) < 0.9F ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY();
   const Eigen::Vector3f x = helper.cross(z).normalized();
   Eigen::Matrix3f r;
   r.col(0) = x;
@@ -124,7 +126,8 @@ Eigen::Matrix3f frame_z(const Eigen::Vector3f& dir) {
   return r;
 }
 
-void add_capsule(Mesh& m, const Eigen::Vector3f& a, const Eigen::Vector3f& b, float r, float density) {
+void add_capsule(Mesh& m, const Eigen::Vector3f& a, const Eigen::Vector3f& b, float r,
+                 float density) {
   const Eigen::Vector3f d = b - a;
   add_round(m, a, frame_z(d), d.norm(), Eigen::Vector3f(r, r, r), density);
 }
@@ -136,7 +139,8 @@ void add_grain(cv::Mat& tex, std::uint64_t seed, int amplitude) {
     for (int x = 0; x < tex.cols; ++x) {
       const std::uint64_t h = mix(seed + static_cast<std::uint64_t>(y * tex.cols + x));
       for (int c = 0; c < 3; ++c) {
-        const auto g = static_cast<int>((h >> (8U * static_cast<unsigned>(c))) & 0xFFU) * amplitude / 256;
+        const auto g =
+            static_cast<int>((h >> (8U * static_cast<unsigned>(c))) & 0xFFU) * amplitude / 256;
         row[x][c] = cv::saturate_cast<std::uint8_t>(row[x][c] + g);
       }
     }
@@ -160,9 +164,15 @@ cv::Mat make_texture(std::mt19937_64& rng, const cv::Scalar& base, int shapes, i
     for (int dx : {-kTex, 0, kTex}) {
       for (int dy : {-kTex, 0, kTex}) {
         switch (s % 3) {
-          case 0: cv::rectangle(tex, {x + dx, y + dy, w, h}, c, cv::FILLED); break;
-          case 1: cv::circle(tex, {x + dx, y + dy}, w / 2, c, cv::FILLED); break;
-          default: cv::line(tex, {x + dx, y + dy}, {x + dx + w, y + dy + h}, c, 2); break;
+          case 0:
+            cv::rectangle(tex, {x + dx, y + dy, w, h}, c, cv::FILLED);
+            break;
+          case 1:
+            cv::circle(tex, {x + dx, y + dy}, w / 2, c, cv::FILLED);
+            break;
+          default:
+            cv::line(tex, {x + dx, y + dy}, {x + dx + w, y + dy + h}, c, 2);
+            break;
         }
       }
     }
@@ -181,12 +191,13 @@ cv::Mat make_cloth(std::mt19937_64& rng) {
   const int period = 16 << (rng() % 2);
   for (int y = 0; y < kTex; ++y) {
     for (int x = 0; x < kTex; ++x) {
-      const bool on = p == 0 ? (y / period) % 2 == 0
-                             : p == 1 ? ((x / period) + (y / period)) % 2 == 0
-                                      : ((x + y) / period) % 2 == 0;
-      if (on) tex.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>(b[0]),
-                                                   static_cast<std::uint8_t>(b[1]),
-                                                   static_cast<std::uint8_t>(b[2]));
+      const bool on = p == 0   ? (y / period) % 2 == 0
+                      : p == 1 ? ((x / period) + (y / period)) % 2 == 0
+                               : ((x + y) / period) % 2 == 0;
+      if (on)
+        tex.at<cv::Vec3b>(y, x) =
+            cv::Vec3b(static_cast<std::uint8_t>(b[0]), static_cast<std::uint8_t>(b[1]),
+                      static_cast<std::uint8_t>(b[2]));
     }
   }
   add_grain(tex, rng(), 30);
@@ -216,9 +227,9 @@ struct Pose2 {
 
 Scenario parse_scenario(std::string_view name) {
   static const std::pair<std::string_view, Scenario> kNames[] = {
-      {"static_room", Scenario::kStaticRoom},       {"walking_static", Scenario::kWalkingStatic},
-      {"walking_xyz", Scenario::kWalkingXyz},       {"walking_halfsphere", Scenario::kWalkingHalfsphere},
-      {"walking_rpy", Scenario::kWalkingRpy},       {"sitting_static", Scenario::kSittingStatic},
+      {"static_room", Scenario::kStaticRoom}, {"walking_static", Scenario::kWalkingStatic},
+      {"walking_xyz", Scenario::kWalkingXyz}, {"walking_halfsphere", Scenario::kWalkingHalfsphere},
+      {"walking_rpy", Scenario::kWalkingRpy}, {"sitting_static", Scenario::kSittingStatic},
       {"sitting_xyz", Scenario::kSittingXyz}};
   for (const auto& [n, s] : kNames) {
     if (n == name) return s;
@@ -231,13 +242,20 @@ Scenario parse_scenario(std::string_view name) {
 
 std::string scenario_name(Scenario s) {
   switch (s) {
-    case Scenario::kStaticRoom: return "static_room";
-    case Scenario::kWalkingStatic: return "walking_static";
-    case Scenario::kWalkingXyz: return "walking_xyz";
-    case Scenario::kWalkingHalfsphere: return "walking_halfsphere";
-    case Scenario::kWalkingRpy: return "walking_rpy";
-    case Scenario::kSittingStatic: return "sitting_static";
-    case Scenario::kSittingXyz: return "sitting_xyz";
+    case Scenario::kStaticRoom:
+      return "static_room";
+    case Scenario::kWalkingStatic:
+      return "walking_static";
+    case Scenario::kWalkingXyz:
+      return "walking_xyz";
+    case Scenario::kWalkingHalfsphere:
+      return "walking_halfsphere";
+    case Scenario::kWalkingRpy:
+      return "walking_rpy";
+    case Scenario::kSittingStatic:
+      return "sitting_static";
+    case Scenario::kSittingXyz:
+      return "sitting_xyz";
   }
   return "unknown";
 }
@@ -259,7 +277,7 @@ void SynthOptions::validate() const {
 
 const std::vector<std::string>& part_names() {
   static const std::vector<std::string> kNames = {
-      "static",         "torso",          "head",           "left_upper_arm", "left_lower_arm",
+      "static",          "torso",           "head",           "left_upper_arm", "left_lower_arm",
       "right_upper_arm", "right_lower_arm", "left_upper_leg", "left_lower_leg", "right_upper_leg",
       "right_lower_leg"};
   return kNames;
@@ -306,7 +324,8 @@ struct SyntheticScene::Impl {
       case Scenario::kStaticRoom:
         motion.translation() =
             Eigen::Vector3d(0.35 * std::sin(w * t / 7.0), 0.2 * std::sin(w * t / 5.0),
-                            0.3 * std::sin(w * t / 9.0)) + wobble;
+                            0.3 * std::sin(w * t / 9.0)) +
+            wobble;
         break;
       case Scenario::kWalkingRpy: {
         const double roll = 0.35 * std::sin(w * t / 6.0);
@@ -377,7 +396,8 @@ struct SyntheticScene::Impl {
       for (int side = 0; side < 2; ++side) {
         thigh[side] = -static_cast<float>(kPi) / 2;
         knee[side] = static_cast<float>(kPi) / 2 - 0.15F;
-        shoulder[side] = -0.25F - 0.35F * std::sin(0.9F * tt + 1.7F * static_cast<float>(side) + ph0);
+        shoulder[side] =
+            -0.25F - 0.35F * std::sin(0.9F * tt + 1.7F * static_cast<float>(side) + ph0);
         elbow[side] = -0.9F - 0.5F * std::sin(1.3F * tt + static_cast<float>(side));
       }
       lean = 0.08F * std::sin(0.5F * tt + ph0);
@@ -396,7 +416,9 @@ struct SyntheticScene::Impl {
     const Eigen::Matrix3f yaw =
         Eigen::AngleAxisf(static_cast<float>(p.yaw), Eigen::Vector3f::UnitZ()).toRotationMatrix();
     const Eigen::Vector3f origin(static_cast<float>(p.xy.x()), static_cast<float>(p.xy.y()), 0);
-    const auto W = [&](const Eigen::Vector3f& local) -> Eigen::Vector3f { return origin + yaw * local; };
+    const auto W = [&](const Eigen::Vector3f& local) -> Eigen::Vector3f {
+      return origin + yaw * local;
+    };
     const auto down = [](float a) {  // (0,0,-1) rotated by a about y: + moves it backwards (-x)
       return Eigen::Vector3f(-std::sin(a), 0, -std::cos(a));
     };
@@ -417,9 +439,10 @@ struct SyntheticScene::Impl {
     const Eigen::Matrix3f torso_r =
         yaw * Eigen::AngleAxisf(lean, Eigen::Vector3f::UnitY()).toRotationMatrix();
     add_part(1, h.mat_shirt, [&](Mesh& m) {
-      add_round(m, W(torso_c), torso_r, 0.0F,
-                Eigen::Vector3f(0.12F * s * g, 0.19F * s * g, 0.5F * (shoulder_z - hip_zb) + 0.05F * s),
-                density);
+      add_round(
+          m, W(torso_c), torso_r, 0.0F,
+          Eigen::Vector3f(0.12F * s * g, 0.19F * s * g, 0.5F * (shoulder_z - hip_zb) + 0.05F * s),
+          density);
     });
     const Eigen::Matrix3f head_r =
         yaw * Eigen::AngleAxisf(head_yaw, Eigen::Vector3f::UnitZ()).toRotationMatrix();
@@ -451,7 +474,8 @@ struct SyntheticScene::Impl {
 
   HumanBox box_of(std::size_t k, double t, const std::vector<Mesh>& meshes) const {
     const Pose2 p = human_pose(humans[k], t);
-    const Eigen::Matrix3d yaw_r = Eigen::AngleAxisd(p.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    const Eigen::Matrix3d yaw_r =
+        Eigen::AngleAxisd(p.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9);
     Eigen::Vector3d hi = Eigen::Vector3d::Constant(-1e9);
     const Eigen::Vector3d origin(p.xy.x(), p.xy.y(), 0);
@@ -477,9 +501,7 @@ struct SyntheticScene::Impl {
     const auto uni = [&](double a, double b) { return a + (b - a) * u01(rng); };
     noise_seed = rng();
     // Textures: 0 floor, 1-4 walls, 5 ceiling, 6.. furniture, then clothes/skin.
-    const auto base_col = [&] {
-      return cv::Scalar(uni(60, 200), uni(60, 200), uni(60, 200));
-    };
+    const auto base_col = [&] { return cv::Scalar(uni(60, 200), uni(60, 200), uni(60, 200)); };
     textures.push_back(make_texture(rng, base_col(), 140, 6, 40));  // floor
     for (int w = 0; w < 4; ++w) textures.push_back(make_texture(rng, base_col(), 110, 8, 60));
     textures.push_back(make_texture(rng, cv::Scalar(200, 200, 200), 40, 10, 60));  // ceiling
@@ -527,8 +549,8 @@ struct SyntheticScene::Impl {
     // Humans.
     int n = opt.num_humans;
     if (n < 0) n = opt.scenario == Scenario::kStaticRoom ? 0 : 2;
-    const bool sitting = opt.scenario == Scenario::kSittingStatic ||
-                         opt.scenario == Scenario::kSittingXyz;
+    const bool sitting =
+        opt.scenario == Scenario::kSittingStatic || opt.scenario == Scenario::kSittingXyz;
     for (int k = 0; k < n; ++k) {
       Human h;
       h.height = uni(1.55, 1.95);
@@ -540,11 +562,12 @@ struct SyntheticScene::Impl {
       h.mat_pants = static_cast<int>(textures.size());
       textures.push_back(make_cloth(rng));
       h.mat_skin = static_cast<int>(textures.size());
-      textures.push_back(make_texture(rng, cv::Scalar(uni(60, 150), uni(90, 170), uni(140, 220)),
-                                      12, 4, 12));
+      textures.push_back(
+          make_texture(rng, cv::Scalar(uni(60, 150), uni(90, 170), uni(140, 220)), 12, 4, 12));
       if (sitting) {
         // Seats spread across the view, 1.8-3.2 m ahead, facing the camera +- 30 deg.
-        h.a = Eigen::Vector2d(uni(2.2, 3.4), kRoomY / 2 + (k - (n - 1) / 2.0) * 1.0 + uni(-0.15, 0.15));
+        h.a = Eigen::Vector2d(uni(2.2, 3.4),
+                              kRoomY / 2 + (k - (n - 1) / 2.0) * 1.0 + uni(-0.15, 0.15));
         h.yaw_sit = kPi + uni(-0.5, 0.5);
         Mesh seat;
         seat.material = first_furniture + (k % 6);
@@ -552,9 +575,12 @@ struct SyntheticScene::Impl {
         const float seat_h = leg2 + 0.06F * static_cast<float>(h.height / 1.75) -
                              0.075F * static_cast<float>(h.height / 1.75 * h.width);
         const Eigen::Vector2d c = h.a;
-        add_box(seat, Eigen::Vector3f(static_cast<float>(c.x() - 0.22), static_cast<float>(c.y() - 0.22), 0),
-                Eigen::Vector3f(static_cast<float>(c.x() + 0.22), static_cast<float>(c.y() + 0.22), seat_h),
-                150.0F);
+        add_box(
+            seat,
+            Eigen::Vector3f(static_cast<float>(c.x() - 0.22), static_cast<float>(c.y() - 0.22), 0),
+            Eigen::Vector3f(static_cast<float>(c.x() + 0.22), static_cast<float>(c.y() + 0.22),
+                            seat_h),
+            150.0F);
         static_meshes.push_back(std::move(seat));
       } else {
         // Walk back and forth across the view, 1.5-3.5 m ahead.
@@ -600,9 +626,11 @@ struct SyntheticScene::Impl {
     const float area = (sx[1] - sx[0]) * (sy[2] - sy[0]) - (sx[2] - sx[0]) * (sy[1] - sy[0]);
     if (!(std::abs(area) > 1e-9F)) return;
     const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({sx[0], sx[1], sx[2]}))));
-    const int x1 = std::min(c.width - 1, static_cast<int>(std::floor(std::max({sx[0], sx[1], sx[2]}))));
+    const int x1 =
+        std::min(c.width - 1, static_cast<int>(std::floor(std::max({sx[0], sx[1], sx[2]}))));
     const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({sy[0], sy[1], sy[2]}))));
-    const int y1 = std::min(c.height - 1, static_cast<int>(std::floor(std::max({sy[0], sy[1], sy[2]}))));
+    const int y1 =
+        std::min(c.height - 1, static_cast<int>(std::floor(std::max({sy[0], sy[1], sy[2]}))));
     if (x0 > x1 || y0 > y1) return;
     const float inv_area = 1.0F / area;
     // Edge functions w_k(x, y) = A_k x + B_k y + C_k, normalised so that w0 + w1 + w2 = 1.
@@ -713,7 +741,8 @@ struct SyntheticScene::Impl {
     f.T_world_cam = camera_pose(f.timestamp);
     const Eigen::Isometry3f T_cw = f.T_world_cam.inverse().cast<float>();
     Buffers b;
-    b.zbuf = cv::Mat(cam.height, cam.width, CV_32F, cv::Scalar(std::numeric_limits<float>::infinity()));
+    b.zbuf =
+        cv::Mat(cam.height, cam.width, CV_32F, cv::Scalar(std::numeric_limits<float>::infinity()));
     b.color = cv::Mat(cam.height, cam.width, CV_8UC3, cv::Scalar(0, 0, 0));
     b.human = cv::Mat::zeros(cam.height, cam.width, CV_8U);
     b.part = cv::Mat::zeros(cam.height, cam.width, CV_8U);
@@ -755,7 +784,8 @@ struct SyntheticScene::Impl {
           // Hole at a depth discontinuity (the projector/camera shadow), most of the time.
           float jump = 0;
           if (x > 0 && std::isfinite(z[x - 1])) jump = std::max(jump, std::abs(z[x - 1] - z[x]));
-          if (x + 1 < cam.width && std::isfinite(z[x + 1])) jump = std::max(jump, std::abs(z[x + 1] - z[x]));
+          if (x + 1 < cam.width && std::isfinite(z[x + 1]))
+            jump = std::max(jump, std::abs(z[x + 1] - z[x]));
           if (y > 0) {
             const float zu = b.zbuf.ptr<float>(y - 1)[x];
             if (std::isfinite(zu)) jump = std::max(jump, std::abs(zu - z[x]));
@@ -838,7 +868,10 @@ namespace {
 void write_png(const std::filesystem::path& p, const cv::Mat& img) {
   std::vector<std::uint8_t> buf;
   // Fast compression: the generator's time goes into rendering, not zlib.
-  DS3D_CHECK_AS(IoError, cv::imencode(".png", img, buf, {cv::IMWRITE_PNG_COMPRESSION, 1}),
+  DS3D_CHECK_AS(IoError,
+                cv::imencode(".png", img, buf,
+                             {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY,
+                              cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY}),
                 "ds3d::synth::generate_sequence: PNG encoding failed for '", p.string(), "'");
   detail::write_file_atomically(
       p, std::string_view(reinterpret_cast<const char*>(buf.data()), buf.size()),
@@ -884,9 +917,10 @@ SynthSummary generate_sequence(const std::filesystem::path& out_dir, const Synth
                 "ds3d::synth::generate_sequence: cannot create '", out_dir.string(), "'");
   SynthSummary sum;
   std::string rgb_txt = "# color images (ds3d synthetic, scenario " +
-                        scenario_name(options.scenario) + ", seed " +
-                        std::to_string(options.seed) + ")\n# timestamp filename\n";
-  std::string depth_txt = "# depth maps (16-bit PNG, " + detail::json_number(options.camera.depth_scale) +
+                        scenario_name(options.scenario) + ", seed " + std::to_string(options.seed) +
+                        ")\n# timestamp filename\n";
+  std::string depth_txt = "# depth maps (16-bit PNG, " +
+                          detail::json_number(options.camera.depth_scale) +
                           " units per metre, 0 = no depth)\n# timestamp filename\n";
   std::string boxes;
   double render_s = 0;
@@ -933,10 +967,19 @@ SynthSummary generate_sequence(const std::filesystem::path& out_dir, const Synth
   }
   const auto& c = options.camera;
   std::string cam = "# ds3d synthetic pinhole camera\n";
-  for (const auto& [k, v] : std::vector<std::pair<std::string, double>>{
-           {"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy}, {"k1", 0}, {"k2", 0}, {"p1", 0},
-           {"p2", 0}, {"k3", 0}, {"depth_scale", c.depth_scale}, {"width", c.width},
-           {"height", c.height}}) {
+  for (const auto& [k, v] :
+       std::vector<std::pair<std::string, double>>{{"fx", c.fx},
+                                                   {"fy", c.fy},
+                                                   {"cx", c.cx},
+                                                   {"cy", c.cy},
+                                                   {"k1", 0},
+                                                   {"k2", 0},
+                                                   {"p1", 0},
+                                                   {"p2", 0},
+                                                   {"k3", 0},
+                                                   {"depth_scale", c.depth_scale},
+                                                   {"width", c.width},
+                                                   {"height", c.height}}) {
     cam += k + " " + detail::json_number(v) + "\n";
   }
   constexpr const char* kFn = "ds3d::synth::generate_sequence";

@@ -128,4 +128,26 @@ TEST(PartA2Targets, MatchesBruteForceOnRandomBoxes) {
   EXPECT_GT(fg, 50);  // the scene really exercises the foreground branch
 }
 
+TEST(Box3, CornersAabbAndLocalFrameAgree) {
+  const auto b = make_box({1.0F, -2.0F, 0.5F}, {2.0F, 1.0F, 0.6F}, 0.7F);
+  const auto corners = ds3d::box::corners(b);
+  const auto hull = ds3d::box::aabb(b);
+  Eigen::Vector3d lo = corners[0], hi = corners[0];
+  for (const auto& c : corners) {
+    lo = lo.cwiseMin(c);
+    hi = hi.cwiseMax(c);
+    // every corner sits at (+-dx/2, +-dy/2, +-dz/2) in the box frame
+    const Eigen::Vector3d l = ds3d::box::to_local(b, c);
+    EXPECT_NEAR(std::abs(l.x()), 1.0, 1e-6);
+    EXPECT_NEAR(std::abs(l.y()), 0.5, 1e-6);
+    EXPECT_NEAR(std::abs(l.z()), 0.3, 1e-6);
+  }
+  EXPECT_TRUE(lo.isApprox(hull[0], 1e-9));
+  EXPECT_TRUE(hi.isApprox(hull[1], 1e-9));
+  EXPECT_DOUBLE_EQ(ds3d::box::aabb_iou(b, b), 1.0);
+  auto far = b;
+  far.centre.x() += 10.0F;
+  EXPECT_DOUBLE_EQ(ds3d::box::aabb_iou(b, far), 0.0);
+}
+
 }  // namespace

@@ -15,7 +15,7 @@ TEST(Preprocess, EqualsTheStagesRunByHand) {
   const ds3d::PreprocessParams params;
   const auto r = ds3d::preprocess(frame.depth.data(), 640, 480, 640, cam, params);
 
-  const auto pts = ds3d::depth_to_points(frame.depth.data(), 640, 480, 640, cam);
+  const auto pts = ds3d::depth_to_points(frame.depth.data(), 640, 480, 640, cam, params.depth);
   const auto vox = ds3d::voxel_grid(pts.points, params.voxel);
   const auto plane = ds3d::ransac_plane(vox.centroids, params.ground);
   ASSERT_TRUE(plane.found);
@@ -30,7 +30,8 @@ TEST(Preprocess, EqualsTheStagesRunByHand) {
   std::vector<std::uint32_t> rest_row;
   for (std::size_t i = 0; i < is_ground.size(); ++i) {
     if (is_ground[i]) continue;
-    rest.row(static_cast<Eigen::Index>(rest_row.size())) = vox.centroids.row(static_cast<Eigen::Index>(i));
+    rest.row(static_cast<Eigen::Index>(rest_row.size())) =
+        vox.centroids.row(static_cast<Eigen::Index>(i));
     rest_row.push_back(static_cast<std::uint32_t>(i));
   }
   const auto kept = ds3d::remove_radius_outliers(rest, params.outlier);
@@ -40,7 +41,8 @@ TEST(Preprocess, EqualsTheStagesRunByHand) {
   EXPECT_EQ(r.num_ground, plane.inliers.size());
   EXPECT_EQ(r.num_outliers, rest_row.size() - kept.kept.size());
   ASSERT_EQ(static_cast<std::size_t>(r.points.rows()), kept.kept.size());
-  EXPECT_GT(r.points.rows(), 1000);
+  EXPECT_GT(r.points.rows(), 1000);  // ~4k detector points with the default 0.1 m leaf
+  EXPECT_LT(r.points.rows(), 10000);
   EXPECT_TRUE(r.points.allFinite());
   for (std::size_t i = 0; i < kept.kept.size(); ++i) {
     const auto row = rest_row[kept.kept[i]];
@@ -61,7 +63,7 @@ TEST(Preprocess, SameResultForAnyThreadCountAndCloudInput) {
   EXPECT_EQ(r1.points, r3.points);
   EXPECT_EQ(r1.source, r3.source);
   EXPECT_EQ(r1.pixels, r3.pixels);
-  const auto pts = ds3d::depth_to_points(frame.depth.data(), 640, 480, 640, frame.camera);
+  const auto pts = ds3d::depth_to_points(frame.depth.data(), 640, 480, 640, frame.camera, p.depth);
   const auto rc = ds3d::preprocess_cloud(pts.points, p);
   EXPECT_EQ(rc.points, r1.points);
   EXPECT_EQ(rc.source, r1.source);

@@ -107,9 +107,8 @@ TEST(RadiusOutlier, NonFiniteInput) {
   const auto r = ds3d::remove_radius_outliers(p, {.radius = 0.05, .min_neighbors = 2});
   EXPECT_EQ(r.kept, (std::vector<std::uint32_t>{0, 2, 4}));
   EXPECT_EQ(r.num_non_finite, 2U);
-  EXPECT_THROW(
-      (void)ds3d::remove_radius_outliers(p, {.on_non_finite = ds3d::NonFinite::kThrow}),
-      ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::remove_radius_outliers(p, {.on_non_finite = ds3d::NonFinite::kThrow}),
+               ds3d::InvalidArgument);
 }
 
 TEST(RadiusOutlier, SameResultForAnyThreadCount) {

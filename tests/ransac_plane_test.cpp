@@ -87,7 +87,8 @@ TEST(RansacPlane, FewerThanThreeFinitePointsIsNoPlane) {
 
 TEST(RansacPlane, CollinearPointsAreNoPlane) {
   Points3f p(20, 3);
-  for (Eigen::Index i = 0; i < 20; ++i) p.row(i) << static_cast<float>(i), 2.0F * static_cast<float>(i), 0.5F;
+  for (Eigen::Index i = 0; i < 20; ++i)
+    p.row(i) << static_cast<float>(i), 2.0F * static_cast<float>(i), 0.5F;
   const auto r = ds3d::ransac_plane(p, {.max_iterations = 50});
   EXPECT_FALSE(r.found);
 }
@@ -128,7 +129,7 @@ TEST(RansacPlane, NormalPriorPicksTheFloorOverALargerWall) {
   const auto ground = ds3d::ransac_plane(p, prior);
   ASSERT_TRUE(ground.found);
   EXPECT_LE(angle_deg(ground.plane.head<3>(), {0, 1, 0}), 1.0);
-  EXPECT_LT(ground.plane[1], 0.0);  // oriented along the prior
+  EXPECT_LT(ground.plane[1], 0.0);          // oriented along the prior
   EXPECT_NEAR(ground.plane[3], 1.0, 0.01);  // -y + d = 0 at y = 1
   EXPECT_GE(ground.inliers.size(), 1490U);
 }
@@ -210,7 +211,9 @@ using UserCloud = std::vector<UserPoint>;
 template <>
 struct ds3d::PointCloudTraits<UserCloud> {
   static std::size_t size(const UserCloud& c) { return c.size(); }
-  static Eigen::Vector3f point(const UserCloud& c, std::size_t i) { return {c[i].x, c[i].y, c[i].z}; }
+  static Eigen::Vector3f point(const UserCloud& c, std::size_t i) {
+    return {c[i].x, c[i].y, c[i].z};
+  }
 };
 
 namespace {

@@ -97,8 +97,8 @@ TEST(Rgbd, StrideRoiRangeAndEigenOverload) {
   for (Eigen::Index i = 0; i < full.points.rows(); i += 997) {
     const auto u = full.pixels(i, 0);
     const auto v = full.pixels(i, 1);
-    const double z = frame.depth[static_cast<std::size_t>(v) * 640 + static_cast<std::size_t>(u)] /
-                     5000.0;
+    const double z =
+        frame.depth[static_cast<std::size_t>(v) * 640 + static_cast<std::size_t>(u)] / 5000.0;
     EXPECT_NEAR(full.points(i, 2), z, 1e-6);
     const Eigen::Vector2d px = cam.project(full.points.row(i).cast<double>().transpose());
     EXPECT_NEAR(px.x(), u, 1e-3);
@@ -175,8 +175,7 @@ TEST(Rgbd, DistortionUsesUndistortedRays) {
   const auto r2 = ds3d::depth_to_points(d.data(), 64, 48, 64, cam, p);
   EXPECT_EQ(r.points, r2.points);
   for (Eigen::Index i = 0; i < r.points.rows(); i += 37) {
-    const Eigen::Vector3d want =
-        cam.back_project(r.pixels(i, 0), r.pixels(i, 1), 2.0);
+    const Eigen::Vector3d want = cam.back_project(r.pixels(i, 0), r.pixels(i, 1), 2.0);
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(r.points(i, k), want[k], 1e-6);
     const Eigen::Vector2d px = cam.project(want);
     EXPECT_NEAR(px.x(), r.pixels(i, 0), 1e-6);
@@ -192,9 +191,9 @@ TEST(Rgbd, RejectsBadInput) {
   std::vector<std::uint16_t> d(640 * 480, 1000);
   EXPECT_THROW((void)ds3d::depth_to_points(d.data(), 320, 480, 640, cam), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::depth_to_points(d.data(), 640, 480, 600, cam), ds3d::InvalidArgument);
-  EXPECT_THROW((void)ds3d::depth_to_points(static_cast<const std::uint16_t*>(nullptr), 640, 480,
-                                           640, cam),
-               ds3d::InvalidArgument);
+  EXPECT_THROW(
+      (void)ds3d::depth_to_points(static_cast<const std::uint16_t*>(nullptr), 640, 480, 640, cam),
+      ds3d::InvalidArgument);
   ds3d::DepthToPointsParams p;
   p.stride = 0;
   EXPECT_THROW((void)ds3d::depth_to_points(d.data(), 640, 480, 640, cam, p), ds3d::InvalidArgument);

@@ -6,11 +6,12 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <unistd.h>
 #include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -37,9 +38,9 @@ std::vector<std::string> fixture_cases() {
 ::testing::AssertionResult within(const char* what, double got, double expected, double floor) {
   const double tol = std::max(1e-9 * std::abs(expected), floor);
   if (std::isfinite(got) && std::abs(got - expected) <= tol) return ::testing::AssertionSuccess();
-  return ::testing::AssertionFailure() << what << ": got " << got << " expected " << expected
-                                       << " (diff " << std::abs(got - expected) << ", tol " << tol
-                                       << ")";
+  return ::testing::AssertionFailure()
+         << what << ": got " << got << " expected " << expected << " (diff "
+         << std::abs(got - expected) << ", tol " << tol << ")";
 }
 
 void expect_stats(const std::string& what, const ds3d::ErrorStats& got, const JsonValue& exp,
@@ -83,13 +84,14 @@ TEST_P(TumFixture, AteMatchesEvaluateAtePy) {
   EXPECT_EQ(est.trajectory.size(), static_cast<std::size_t>(ate.at("n_est_poses_read").as_int()));
 
   const auto r = ds3d::evaluate_ate(gt.trajectory, est.trajectory);
-  ASSERT_EQ(r.compared_pose_pairs, static_cast<std::size_t>(ate.at("compared_pose_pairs").as_int()));
+  ASSERT_EQ(r.compared_pose_pairs,
+            static_cast<std::size_t>(ate.at("compared_pose_pairs").as_int()));
   expect_stats("ate", r.stats(), ate, 1e-12);
   for (int i = 0; i < 3; ++i) {
     EXPECT_NEAR(r.translation(i), ate.at("alignment").at("translation").at(i).as_number(), 1e-9);
     for (int j = 0; j < 3; ++j) {
-      EXPECT_NEAR(r.rotation(i, j),
-                  ate.at("alignment").at("rotation").at(i).at(j).as_number(), 1e-9);
+      EXPECT_NEAR(r.rotation(i, j), ate.at("alignment").at("rotation").at(i).at(j).as_number(),
+                  1e-9);
     }
   }
   const auto assoc = read_table(dir() / ate.at("associations_file").as_string());
@@ -161,8 +163,8 @@ TEST(ReadTum, ScriptLineRules) {
   const std::string text =
       "# comment\r\n"
       "\n"
-      "3.0 1 2 3 0 0 0 1\r"           // lone CR ends a line
-      "1.0,1,2,3,0,0,0,2\n"           // commas, non-unit quaternion
+      "3.0 1 2 3 0 0 0 1\r"            // lone CR ends a line
+      "1.0,1,2,3,0,0,0,2\n"            // commas, non-unit quaternion
       "2.0\t1e-3\t2\t3\t0\t0\t0\t1\n"  // tabs and exponent
       "3.000 9 9 9 0 0 0 1\n"          // same stamp, later line wins
       "   \n"                          // only spaces: skipped
@@ -192,10 +194,10 @@ TEST(ReadTum, RejectsMalformedLinesNamingTheLine) {
     }
     return false;
   };
-  EXPECT_TRUE(throws_with("1 2 3 4 5 6 7\n", "f.txt line 1"));           // 7 numbers
+  EXPECT_TRUE(throws_with("1 2 3 4 5 6 7\n", "f.txt line 1"));               // 7 numbers
   EXPECT_TRUE(throws_with("1 2 3 4 5 6 7 8\nx 2 3 4 5 6 7 8\n", "line 2"));  // not a number
-  EXPECT_TRUE(throws_with("0x10 2 3 4 5 6 7 8\n", "'0x10'"));             // hex (Python rejects)
-  EXPECT_TRUE(throws_with(" # comment after a space\n", "line 1"));      // not a comment
+  EXPECT_TRUE(throws_with("0x10 2 3 4 5 6 7 8\n", "'0x10'"));                // hex (Python rejects)
+  EXPECT_TRUE(throws_with(" # comment after a space\n", "line 1"));          // not a comment
   EXPECT_TRUE(throws_with("1. 2 3 4 5 6 7 1e\n", "'1e'"));
   EXPECT_THROW((void)ds3d::read_tum_trajectory("/nonexistent/ds3d/gt.txt"), ds3d::IoError);
 }
@@ -208,7 +210,8 @@ TEST(ReadTum, PythonFloatGrammar) {
   EXPECT_EQ(parse_py_float("1_000.5").value(), 1000.5);
   EXPECT_TRUE(std::isinf(parse_py_float("-Infinity").value()));
   EXPECT_TRUE(std::isnan(parse_py_float("NaN").value()));
-  for (const char* bad : {"", ".", "1__0", "_1", "1_", "0x1p3", "1e", "e5", "1.2.3", "--1", "infx"}) {
+  for (const char* bad :
+       {"", ".", "1__0", "_1", "1_", "0x1p3", "1e", "e5", "1.2.3", "--1", "infx"}) {
     EXPECT_FALSE(parse_py_float(bad).has_value()) << bad;
   }
 }
@@ -337,7 +340,8 @@ TEST(Rpe, PerfectEstimateHasZeroErrorForEveryUnit) {
 TEST(Rpe, SubsamplingIsSeededAndBounded) {
   const auto gt = helix(300, 1.0 / 30);
   auto est = gt;
-  for (std::size_t i = 0; i < est.size(); ++i) est[i].T_world_cam.translation().x() += 1e-3 * static_cast<double>(i % 7);
+  for (std::size_t i = 0; i < est.size(); ++i)
+    est[i].T_world_cam.translation().x() += 1e-3 * static_cast<double>(i % 7);
   ds3d::RpeOptions o;
   o.fixed_delta = false;
   o.max_pairs = 500;
@@ -354,6 +358,61 @@ TEST(Rpe, RejectsBadInput) {
   EXPECT_THROW((void)ds3d::evaluate_rpe(gt, gt, {.delta = std::nan("")}), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::evaluate_rpe(gt, {gt[0]}), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::evaluate_rpe(gt, helix(50, 0.01, 1000.0)), ds3d::InvalidArgument);
+}
+
+}  // namespace
+
+namespace {
+
+// DynaSLAM's own trajectories and the numbers its authors' run of the TUM scripts printed
+// (../shared/data/tum_fr3_dynamic_groundtruth): numbers nobody here made. Skipped without data.
+std::map<std::string, double> printed_numbers(const fs::path& p) {
+  std::map<std::string, double> out;
+  for (const auto& line : ds3d::test::read_lines(p)) {
+    char name[128];
+    double v = 0;
+    if (std::sscanf(line.c_str(), "%127s %lf", name, &v) == 2) out[name] = v;
+  }
+  return out;
+}
+
+TEST(RealData, DynaSlamTrajectoriesGiveThePrintedAteAndRpe) {
+  const fs::path root = ds3d::test::shared_data_dir();
+  if (root.empty() || !fs::exists(root / "tum_fr3_dynamic_groundtruth")) GTEST_SKIP() << "no data";
+  const fs::path dir = root / "tum_fr3_dynamic_groundtruth";
+  std::size_t checked = 0;
+  for (const char* seq : {"fr3_sitting_static", "fr3_walk_halfsphere", "fr3_walk_rpy",
+                          "fr3_walk_static", "fr3_walk_xyz"}) {
+    SCOPED_TRACE(seq);
+    const fs::path res = dir / "dynaslam_results" / seq;
+    const fs::path ate_file = res / (std::string(seq) + "_ate_0.txt");
+    if (!fs::exists(ate_file)) continue;
+    const fs::path gt_file = dir / (std::string(seq) + ".txt");
+    const auto gt = ds3d::read_tum_file(gt_file, {.keep_zero_quaternion = true}).trajectory;
+    const auto est =
+        ds3d::read_tum_file(res / "CameraTrajectory_0.txt", {.keep_zero_quaternion = true})
+            .trajectory;
+    const auto ate = ds3d::evaluate_ate(gt, est);
+    auto want = printed_numbers(ate_file);
+    EXPECT_EQ(static_cast<double>(ate.compared_pose_pairs), want["compared_pose_pairs"]);
+    EXPECT_NEAR(ate.rmse, want["absolute_translational_error.rmse"], 6e-7);
+    EXPECT_NEAR(ate.mean, want["absolute_translational_error.mean"], 6e-7);
+    EXPECT_NEAR(ate.median, want["absolute_translational_error.median"], 6e-7);
+    EXPECT_NEAR(ate.max, want["absolute_translational_error.max"], 6e-7);
+    const fs::path rpe_file = res / (std::string(seq) + "_rpe_0.txt");
+    if (fs::exists(rpe_file)) {
+      const auto rpe =
+          ds3d::evaluate_rpe(ds3d::read_tum_trajectory(gt_file),
+                             ds3d::read_tum_trajectory(res / "CameraTrajectory_0.txt"));
+      want = printed_numbers(rpe_file);
+      EXPECT_EQ(static_cast<double>(rpe.compared_pose_pairs), want["compared_pose_pairs"]);
+      EXPECT_NEAR(rpe.translational.rmse, want["translational_error.rmse"], 6e-7);
+      EXPECT_NEAR(rpe.translational.max, want["translational_error.max"], 6e-7);
+      EXPECT_NEAR(rpe.rotational.rmse, want["rotational_error.rmse"], 6e-7);
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 5U);
 }
 
 }  // namespace

@@ -60,9 +60,8 @@ TEST(VoxelGrid, MatchesEveryGoldenFixture) {
           p.num_threads = threads;
           const VoxelGridResult r = ds3d::voxel_grid(pts, p);
           expect_matches_golden(r, ds3d::test::read_voxel_csv(file), file.string());
-          EXPECT_EQ(r.num_non_finite,
-                    static_cast<std::size_t>(meta.at("n_points").as_int() -
-                                             meta.at("n_finite").as_int()));
+          EXPECT_EQ(r.num_non_finite, static_cast<std::size_t>(meta.at("n_points").as_int() -
+                                                               meta.at("n_finite").as_int()));
           // Representatives are members of their voxel.
           for (std::size_t i = 0; i < r.representative.size(); ++i) {
             const auto q = pts.row(r.representative[i]);

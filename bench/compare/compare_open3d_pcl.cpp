@@ -44,8 +44,8 @@ Timed measure(int reps, const std::function<double()>& fn) {
   for (int r = 0; r < reps; ++r) {
     const auto t0 = std::chrono::steady_clock::now();
     t.check = fn();
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                     .count());
+    ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
   std::sort(ms.begin(), ms.end());
   t.ms = ms[ms.size() / 2];
@@ -98,7 +98,9 @@ int main(int argc, char** argv) {
   }
   omp_set_num_threads(1);  // single-thread comparison: Open3D's plane and radius use OpenMP
 
-  std::printf("| op | points | ds3d ms | Open3D ms | PCL ms | Open3D / ds3d | PCL / ds3d | check ds3d / Open3D / PCL |\n");
+  std::printf(
+      "| op | points | ds3d ms | Open3D ms | PCL ms | Open3D / ds3d | PCL / ds3d | check ds3d / "
+      "Open3D / PCL |\n");
   std::printf("|---|---|---|---|---|---|---|---|\n");
   for (const std::int64_t size : sizes) {
     const auto frame = ds3d::test::render_room(1, camera_for(size));
@@ -126,9 +128,8 @@ int main(int argc, char** argv) {
       const Timed a = measure(reps, [&] {
         return static_cast<double>(ds3d::voxel_grid(pts, {.leaf_size = leaf}).counts.size());
       });
-      const Timed b = measure(reps, [&] {
-        return static_cast<double>(o3d.VoxelDownSample(leaf)->points_.size());
-      });
+      const Timed b = measure(
+          reps, [&] { return static_cast<double>(o3d.VoxelDownSample(leaf)->points_.size()); });
       const Timed c = measure(reps, [&] {
         pcl::VoxelGrid<pcl::PointXYZ> vg;
         vg.setInputCloud(pc);
@@ -183,9 +184,9 @@ int main(int argc, char** argv) {
         pcl::PointIndices inl;
         seg.segment(inl, coef);
         if (coef.values.size() != 4) return 0.0;
-        return plane_inliers(pts, Eigen::Vector4d(coef.values[0], coef.values[1], coef.values[2],
-                                                  coef.values[3]),
-                             0.01);
+        return plane_inliers(
+            pts, Eigen::Vector4d(coef.values[0], coef.values[1], coef.values[2], coef.values[3]),
+            0.01);
       });
       row("plane 1000 it, t 0.01", a, b, c);
     }

@@ -26,11 +26,11 @@ namespace ds3d {
 
 /// One associated RGB-D frame, images loaded.
 struct RgbdFrame {
-  std::size_t index = 0;         ///< position in the associated sequence
-  double timestamp = 0;          ///< rgb timestamp [s]
-  double depth_timestamp = 0;    ///< associated depth timestamp [s]
-  cv::Mat rgb;                   ///< CV_8UC3, BGR (as cv::imread)
-  cv::Mat depth;                 ///< CV_16UC1 raw units (camera.depth_scale per metre), 0 = invalid
+  std::size_t index = 0;       ///< position in the associated sequence
+  double timestamp = 0;        ///< rgb timestamp [s]
+  double depth_timestamp = 0;  ///< associated depth timestamp [s]
+  cv::Mat rgb;                 ///< CV_8UC3, BGR (as cv::imread)
+  cv::Mat depth;               ///< CV_16UC1 raw units (camera.depth_scale per metre), 0 = invalid
 };
 
 /// Built-in intrinsics (640 x 480, depth_scale 5000), from the TUM RGB-D "file formats / camera

@@ -31,8 +31,9 @@ struct OrbParams {
   int fast_threshold = 20;       ///< FAST intensity threshold, in [1, 255]
   int min_fast_threshold = 7;    ///< fallback threshold for cells with no corner, in [1, fast_threshold]
   int cell_size = 35;            ///< grid cell edge [px at that level], >= 8
-  double max_depth = 3.0;        ///< keypoints nearer than this [m] are "close" (reliable depth), > 0
+  double max_depth = 3.0;        ///< keypoints up to this depth [m] are "close" (ORB-SLAM2's ThDepth), > 0
   double min_depth = 0.1;        ///< depths below this [m] are treated as missing, >= 0
+  double max_range = 10.0;       ///< depths beyond this [m] are treated as missing, >= max_depth
   void validate() const;         ///< throws ds3d::InvalidArgument naming the bad field
 };
 
@@ -42,10 +43,16 @@ struct OrbFeatures {
   std::vector<cv::KeyPoint> keypoints;  ///< raw (distorted) pixels, level-0 coordinates; octave = level
   cv::Mat descriptors;                  ///< N×32 CV_8U rotated-BRIEF descriptors
   std::vector<Eigen::Vector2f> undistorted;  ///< undistorted pixel (u, v) with the same intrinsics
-  std::vector<float> depth;  ///< depth [m] at the keypoint; 0 when missing or outside [min, max_depth]
+  std::vector<float> depth;  ///< depth [m] at the keypoint; 0 when missing or outside [min_depth, max_range]
+  float close_depth = 3.0F;  ///< params.max_depth: the close/far threshold [m]
   [[nodiscard]] std::size_t size() const noexcept { return keypoints.size(); }
-  /// True if keypoint i has a usable depth ("close" point in ORB-SLAM2's terms).
+  /// True if keypoint i has a measured depth.
   [[nodiscard]] bool has_depth(std::size_t i) const noexcept { return depth[i] > 0.0F; }
+  /// True if keypoint i is "close" (depth measured and <= close_depth): reliable enough to create
+  /// a map point from one frame (ORB-SLAM2, §III-A).
+  [[nodiscard]] bool is_close(std::size_t i) const noexcept {
+    return depth[i] > 0.0F && depth[i] <= close_depth;
+  }
 };
 
 /// Grid-bucketed multi-scale ORB extractor.

@@ -26,7 +26,7 @@ namespace ds3d {
 
 /// Parameters of ransac_plane().
 struct RansacPlaneParams {
-  double distance_threshold = 0.01;  ///< t [m], finite and > 0; inlier iff |distance| < t
+  double distance_threshold = 0.01;     ///< t [m], finite and > 0; inlier iff |distance| < t
   std::uint32_t max_iterations = 1000;  ///< number of random triples, >= 1
   /// Early stop once `1 - (1 - w^3)^iterations >= confidence` (w: best inlier fraction so far),
   /// in [0, 1]; 1 disables the early stop (exactly max_iterations hypotheses are scored).
@@ -51,8 +51,8 @@ struct RansacPlaneParams {
 struct RansacPlaneResult {
   bool found = false;  ///< false: fewer than 3 finite points, or every triple was degenerate
                        ///< or violated the normal prior
-  /// (a, b, c, d) with unit (a, b, c). Sign: along normal_prior if given, else the largest-magnitude
-  /// normal component is positive. Zero when !found.
+  /// (a, b, c, d) with unit (a, b, c). Sign: along normal_prior if given, else the
+  /// largest-magnitude normal component is positive. Zero when !found.
   Eigen::Vector4d plane = Eigen::Vector4d::Zero();
   std::vector<std::uint32_t> inliers;  ///< ascending input indices: |distance| < t (in double)
   std::uint32_t iterations = 0;        ///< hypotheses drawn before stopping

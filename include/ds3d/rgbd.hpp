@@ -34,9 +34,9 @@ using Pixels2i = Eigen::Matrix<std::int32_t, Eigen::Dynamic, 2, Eigen::RowMajor>
 /// Precomputed normalised rays (x/z, y/z) of every pixel of a camera, undistorted.
 /// Build once per camera with make_pixel_rays() and pass it in DepthToPointsParams::rays.
 struct PixelRays {
-  int width = 0;              ///< image width [px]
-  int height = 0;             ///< image height [px]
-  std::vector<double> x, y;   ///< ray of pixel (u, v) at index v * width + u
+  int width = 0;             ///< image width [px]
+  int height = 0;            ///< image height [px]
+  std::vector<double> x, y;  ///< ray of pixel (u, v) at index v * width + u
 };
 
 /// Undistorted rays of every pixel of `camera` (PinholeCamera::undistort, 20 fixed-point steps).
@@ -54,11 +54,11 @@ struct PixelRoi {
 
 /// Parameters of depth_to_points().
 struct DepthToPointsParams {
-  int stride = 1;              ///< take every stride-th pixel in u and v (from the ROI origin), >= 1
-  PixelRoi roi{};              ///< pixels considered; must lie inside the image
-  double min_depth = 0.0;      ///< points with z < min_depth [m] are skipped and counted, >= 0
+  int stride = 1;          ///< take every stride-th pixel in u and v (from the ROI origin), >= 1
+  PixelRoi roi{};          ///< pixels considered; must lie inside the image
+  double min_depth = 0.0;  ///< points with z < min_depth [m] are skipped and counted, >= 0
   double max_depth = std::numeric_limits<double>::infinity();  ///< z > max_depth skipped, > min
-  bool undistort = true;       ///< apply the camera's distortion model if it has one
+  bool undistort = true;            ///< apply the camera's distortion model if it has one
   const PixelRays* rays = nullptr;  ///< optional precomputed rays (must match the camera size)
   /// Throws ds3d::InvalidArgument naming the bad field and value.
   void validate() const;
@@ -66,9 +66,9 @@ struct DepthToPointsParams {
 
 /// Output of depth_to_points().
 struct DepthToPointsResult {
-  Points3f points;                ///< camera-frame points [m], row-major pixel order
-  Pixels2i pixels;                ///< (u, v) of each point
-  std::size_t num_invalid = 0;    ///< visited pixels with depth 0 or NaN (or negative/inf float)
+  Points3f points;                   ///< camera-frame points [m], row-major pixel order
+  Pixels2i pixels;                   ///< (u, v) of each point
+  std::size_t num_invalid = 0;       ///< visited pixels with depth 0 or NaN (or negative/inf float)
   std::size_t num_out_of_range = 0;  ///< valid pixels outside [min_depth, max_depth]
 };
 

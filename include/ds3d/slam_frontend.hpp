@@ -142,12 +142,15 @@ enum class TrackState : std::uint8_t {
 /// Per-keypoint status in TrackResult::keypoint_status.
 enum class KeypointStatus : std::uint8_t { kUnmatched = 0, kTracked = 1, kDynamic = 2 };
 
-/// Per-stage wall times of one frame [ms].
+/// Per-stage times of one frame [ms]: wall time, and the CPU time of the thread that ran the
+/// stage (CPU time does not grow when other processes compete for the cores).
 struct StageTimes {
-  double extract_ms = 0;  ///< ORB extraction (+ undistortion, depth lookup)
-  double detect_ms = 0;   ///< dynamic-object source
-  double filter_ms = 0;   ///< dynamic filter
-  double track_ms = 0;    ///< tracking (+ keyframe insertion, BA scheduling and applying)
+  double extract_ms = 0;      ///< ORB extraction (+ undistortion, depth lookup), wall
+  double detect_ms = 0;       ///< dynamic-object source, wall
+  double filter_ms = 0;       ///< dynamic filter, wall
+  double track_ms = 0;        ///< tracking (+ keyframe insertion, BA scheduling/applying), wall
+  double extract_cpu_ms = 0;  ///< extraction, thread CPU time
+  double track_cpu_ms = 0;    ///< tracking, thread CPU time
 };
 
 /// The outcome of tracking one frame.
@@ -239,7 +242,7 @@ class SlamFrontend {
 
   [[nodiscard]] const FrontendConfig& config() const noexcept;
   [[nodiscard]] std::size_t num_keyframes() const noexcept;
-  /// Local BAs run so far, and their total wall time [ms] (measured in the mapping thread).
+  /// Local BAs run so far, and their total thread CPU time [ms] (measured in the mapping thread).
   [[nodiscard]] std::size_t num_local_ba() const noexcept;
   [[nodiscard]] double local_ba_ms() const noexcept;
   [[nodiscard]] const DynamicObjectSource& dynamic_source() const noexcept;

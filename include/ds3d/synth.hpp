@@ -56,27 +56,27 @@ struct SynthOptions {
   double start_time = 1700000000.0;           ///< stamp of frame 0 [s]
   /// Intrinsics (no distortion allowed); default TUM ROS 525/525/319.5/239.5, 640 x 480.
   PinholeCamera camera = PinholeCamera{};
-  bool depth_noise = true;    ///< false: exact depth (still x depth_scale, rounded), no holes
-  bool write_parts = false;   ///< also write per-pixel human id and part locations (see below)
-  void validate() const;      ///< throws ds3d::InvalidArgument naming the bad field
+  bool depth_noise = true;   ///< false: exact depth (still x depth_scale, rounded), no holes
+  bool write_parts = false;  ///< also write per-pixel human id and part locations (see below)
+  void validate() const;     ///< throws ds3d::InvalidArgument naming the bad field
 };
 
 /// A humanoid's gravity-aligned oriented 3-D box (tight around its primitives) in the world.
 struct HumanBox {
-  int id = 0;                                          ///< 0 ... num_humans-1, stable over time
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();    ///< box centre, world [m]
-  Eigen::Vector3d size = Eigen::Vector3d::Zero();      ///< extent along its local x (facing), y, z [m]
-  double yaw = 0;                                      ///< heading about world z [rad]
-  bool sitting = false;                                ///< seated (moves a little) or walking
-  int visible_pixels = 0;                              ///< pixels of this human in the frame
+  int id = 0;                                        ///< 0 ... num_humans-1, stable over time
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();  ///< box centre, world [m]
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();  ///< extent along its local x (facing), y, z [m]
+  double yaw = 0;                                  ///< heading about world z [rad]
+  bool sitting = false;                            ///< seated (moves a little) or walking
+  int visible_pixels = 0;                          ///< pixels of this human in the frame
 };
 
 /// One rendered frame.
 struct SynthFrame {
-  std::size_t index = 0;        ///< frame number
-  double timestamp = 0;         ///< [s]
+  std::size_t index = 0;                                          ///< frame number
+  double timestamp = 0;                                           ///< [s]
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< ground-truth pose
-  cv::Mat rgb;                  ///< CV_8UC3 BGR
+  cv::Mat rgb;                                                    ///< CV_8UC3 BGR
   cv::Mat depth;                ///< CV_16UC1, camera.depth_scale units per metre, 0 = no depth
   cv::Mat depth_true;           ///< CV_32FC1 noiseless z [m], 0 where nothing was hit
   cv::Mat dynamic_mask;         ///< CV_8UC1: 255 where a human is seen, else 0
@@ -107,9 +107,9 @@ class SyntheticScene {
   SyntheticScene(const SyntheticScene&) = delete;
   SyntheticScene& operator=(const SyntheticScene&) = delete;
 
-  [[nodiscard]] std::size_t size() const;                     ///< options.num_frames
-  [[nodiscard]] const SynthOptions& options() const;          ///< as given
-  [[nodiscard]] double timestamp(std::size_t i) const;        ///< start_time + i / fps
+  [[nodiscard]] std::size_t size() const;               ///< options.num_frames
+  [[nodiscard]] const SynthOptions& options() const;    ///< as given
+  [[nodiscard]] double timestamp(std::size_t i) const;  ///< start_time + i / fps
   /// Camera pose at any time t [s] (the trajectory is analytic), camera-to-world.
   [[nodiscard]] Eigen::Isometry3d camera_pose(double t) const;
   /// Renders frame i. @throws ds3d::InvalidArgument for i >= size().
@@ -122,10 +122,10 @@ class SyntheticScene {
 
 /// What generate_sequence() wrote.
 struct SynthSummary {
-  std::size_t frames = 0;            ///< frames written
-  std::size_t dynamic_pixels = 0;    ///< total human pixels over all frames
-  double render_seconds = 0;         ///< CPU time of the calling thread spent rendering (no PNG)
-  double total_seconds = 0;          ///< wall time of the whole call
+  std::size_t frames = 0;          ///< frames written
+  std::size_t dynamic_pixels = 0;  ///< total human pixels over all frames
+  double render_seconds = 0;       ///< CPU time of the calling thread spent rendering (no PNG)
+  double total_seconds = 0;        ///< wall time of the whole call
 };
 
 /// Writes a TUM-layout folder: rgb/<t>.png, depth/<t>.png (16-bit, x depth_scale), rgb.txt,

@@ -29,7 +29,7 @@ namespace ds3d {
 
 /// One timestamped camera pose.
 struct TimedPose {
-  double timestamp = 0;  ///< [s], usually Unix epoch
+  double timestamp = 0;                                           ///< [s], usually Unix epoch
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< camera-to-world
 };
 
@@ -47,11 +47,11 @@ struct TumReadOptions {
 
 /// What parse_tum_trajectory() read, with counts of what it dropped.
 struct TumReadResult {
-  Trajectory trajectory;                  ///< sorted by timestamp, unique timestamps
-  std::size_t num_lines = 0;              ///< data lines parsed (comments/blank lines excluded)
-  std::size_t num_duplicates = 0;         ///< lines replaced by a later line with the same stamp
-  std::size_t num_zero_quaternion = 0;    ///< lines skipped for a 0 0 0 0 quaternion
-  std::size_t num_non_finite = 0;         ///< lines skipped for a NaN or infinite value
+  Trajectory trajectory;                ///< sorted by timestamp, unique timestamps
+  std::size_t num_lines = 0;            ///< data lines parsed (comments/blank lines excluded)
+  std::size_t num_duplicates = 0;       ///< lines replaced by a later line with the same stamp
+  std::size_t num_zero_quaternion = 0;  ///< lines skipped for a 0 0 0 0 quaternion
+  std::size_t num_non_finite = 0;       ///< lines skipped for a NaN or infinite value
 };
 
 namespace detail {
@@ -105,8 +105,8 @@ inline void append_double(std::string& out, double v) {
   TumReadResult res;
   for (const auto& line : detail::split_tum_lines(text)) {
     if (line.tokens.empty()) continue;  // only spaces: skipped (the scripts crash here)
-    DS3D_CHECK_AS(IoError, line.tokens.size() >= 8, "ds3d::read_tum_trajectory: ", source,
-                  " line ", line.number, ": expected 8 numbers 'timestamp tx ty tz qx qy qz qw' (got ",
+    DS3D_CHECK_AS(IoError, line.tokens.size() >= 8, "ds3d::read_tum_trajectory: ", source, " line ",
+                  line.number, ": expected 8 numbers 'timestamp tx ty tz qx qy qz qw' (got ",
                   line.tokens.size(), " tokens)");
     Row row{};
     row.order = rows.size();
@@ -123,7 +123,8 @@ inline void append_double(std::string& out, double v) {
       ++res.num_zero_quaternion;
       continue;
     }
-    if (!std::all_of(std::begin(row.v), std::end(row.v), [](double x) { return std::isfinite(x); })) {
+    if (!std::all_of(std::begin(row.v), std::end(row.v),
+                     [](double x) { return std::isfinite(x); })) {
       ++res.num_non_finite;
       continue;
     }

@@ -86,9 +86,9 @@ struct ErrorStats {
              max_difference, ")");
   DS3D_CHECK(std::isfinite(offset), "ds3d::associate_timestamps: offset must be finite (got ",
              offset, ")");
-  DS3D_CHECK(std::is_sorted(first.begin(), first.end()) &&
-                 std::is_sorted(second.begin(), second.end()),
-             "ds3d::associate_timestamps: stamps must be sorted ascending");
+  DS3D_CHECK(
+      std::is_sorted(first.begin(), first.end()) && std::is_sorted(second.begin(), second.end()),
+      "ds3d::associate_timestamps: stamps must be sorted ascending");
   struct Cand {
     double diff;
     double a;
@@ -138,15 +138,15 @@ enum class Alignment : std::uint8_t {
   if (name == "se3") return Alignment::kSE3;
   if (name == "sim3") return Alignment::kSim3;
   if (name == "none") return Alignment::kNone;
-  throw InvalidArgument(
-      detail::concat("ds3d::parse_alignment: alignment must be se3, sim3 or none (got '", name, "')"));
+  throw InvalidArgument(detail::concat(
+      "ds3d::parse_alignment: alignment must be se3, sim3 or none (got '", name, "')"));
 }
 
 /// Options of evaluate_ate(); defaults are evaluate_ate.py's.
 struct AteOptions {
-  double max_difference = 0.02;          ///< association window [s], >= 0 (strict <)
-  double offset = 0.0;                   ///< added to estimate stamps [s]
-  double scale = 1.0;                    ///< estimate positions are multiplied by it, > 0
+  double max_difference = 0.02;           ///< association window [s], >= 0 (strict <)
+  double offset = 0.0;                    ///< added to estimate stamps [s]
+  double scale = 1.0;                     ///< estimate positions are multiplied by it, > 0
   Alignment alignment = Alignment::kSE3;  ///< se3 (TUM), sim3 or none
   void validate() const {
     DS3D_CHECK(std::isfinite(max_difference) && max_difference >= 0,
@@ -161,11 +161,11 @@ struct AteOptions {
 
 /// One associated ground-truth / estimate pair.
 struct AteMatch {
-  double t_gt = 0;                                   ///< ground-truth stamp [s]
-  double t_est = 0;                                  ///< estimate stamp [s]
-  Eigen::Vector3d p_gt = Eigen::Vector3d::Zero();     ///< ground-truth position [m]
-  Eigen::Vector3d p_est = Eigen::Vector3d::Zero();    ///< aligned estimate position [m]
-  double error = 0;                                  ///< ||p_est - p_gt|| [m]
+  double t_gt = 0;                                  ///< ground-truth stamp [s]
+  double t_est = 0;                                 ///< estimate stamp [s]
+  Eigen::Vector3d p_gt = Eigen::Vector3d::Zero();   ///< ground-truth position [m]
+  Eigen::Vector3d p_est = Eigen::Vector3d::Zero();  ///< aligned estimate position [m]
+  double error = 0;                                 ///< ||p_est - p_gt|| [m]
 };
 
 /// Result of evaluate_ate(). Errors in metres.
@@ -181,11 +181,11 @@ struct AteResult {
   /// AteOptions::scale).
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();  ///< [m]
-  double scale_factor = 1.0;             ///< 1 unless Alignment::kSim3
-  std::vector<AteMatch> matches;         ///< sorted by ground-truth stamp
-  std::size_t num_gt_poses = 0;          ///< unique, finite ground-truth poses used
-  std::size_t num_est_poses = 0;         ///< unique, finite estimate poses used
-  std::size_t num_non_finite = 0;        ///< poses skipped (non-finite stamp or position)
+  double scale_factor = 1.0;                              ///< 1 unless Alignment::kSim3
+  std::vector<AteMatch> matches;                          ///< sorted by ground-truth stamp
+  std::size_t num_gt_poses = 0;    ///< unique, finite ground-truth poses used
+  std::size_t num_est_poses = 0;   ///< unique, finite estimate poses used
+  std::size_t num_non_finite = 0;  ///< poses skipped (non-finite stamp or position)
   [[nodiscard]] ErrorStats stats() const { return {rmse, mean, median, std, min, max}; }
 };
 
@@ -237,7 +237,8 @@ inline std::tuple<Eigen::Matrix3d, Eigen::Vector3d, double> align_positions(
   const Eigen::Matrix3Xd mz = model.colwise() - mean_m;
   const Eigen::Matrix3Xd dz = data.colwise() - mean_d;
   const Eigen::Matrix3d w = mz * dz.transpose();
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(w.transpose(), Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(w.transpose(),
+                                              Eigen::ComputeFullU | Eigen::ComputeFullV);
   const Eigen::Matrix3d u = svd.matrixU();
   const Eigen::Matrix3d vh = svd.matrixV().transpose();
   Eigen::Matrix3d s = Eigen::Matrix3d::Identity();
@@ -343,14 +344,14 @@ enum class RpeConvention : std::uint8_t {
 /// Options of evaluate_rpe(). Defaults: evaluate_rpe.py with --fixed_delta --delta 1
 /// --delta_unit s (the script's own default without --fixed_delta is all pairs).
 struct RpeOptions {
-  bool fixed_delta = true;               ///< false: all ordered pairs (or max_pairs random ones)
-  double delta = 1.0;                    ///< in delta_unit, finite
+  bool fixed_delta = true;  ///< false: all ordered pairs (or max_pairs random ones)
+  double delta = 1.0;       ///< in delta_unit, finite
   DeltaUnit delta_unit = DeltaUnit::kSeconds;
-  std::size_t max_pairs = 10000;         ///< 0 = no limit; above it pairs are subsampled
-  double offset = 0.0;                   ///< added to estimate stamps [s]
-  double scale = 1.0;                    ///< estimate relative translations are scaled by it, > 0
+  std::size_t max_pairs = 10000;  ///< 0 = no limit; above it pairs are subsampled
+  double offset = 0.0;            ///< added to estimate stamps [s]
+  double scale = 1.0;             ///< estimate relative translations are scaled by it, > 0
   RpeConvention convention = RpeConvention::kTum;
-  std::uint64_t seed = 1;                ///< subsampling RNG (the script uses Python's random)
+  std::uint64_t seed = 1;  ///< subsampling RNG (the script uses Python's random)
   void validate() const {
     DS3D_CHECK(std::isfinite(delta), "ds3d::evaluate_rpe: delta must be finite (got ", delta, ")");
     DS3D_CHECK(std::isfinite(offset), "ds3d::evaluate_rpe: offset must be finite (got ", offset,
@@ -362,12 +363,12 @@ struct RpeOptions {
 
 /// One evaluated pose pair, in evaluate_rpe.py's column order.
 struct RpePair {
-  double t_est0 = 0;            ///< [s]
-  double t_est1 = 0;            ///< [s]
-  double t_gt0 = 0;             ///< nearest ground-truth stamp to t_est0 + offset [s]
-  double t_gt1 = 0;             ///< [s]
-  double trans_error = 0;       ///< [m]
-  double rot_error_rad = 0;     ///< [rad]
+  double t_est0 = 0;         ///< [s]
+  double t_est1 = 0;         ///< [s]
+  double t_gt0 = 0;          ///< nearest ground-truth stamp to t_est0 + offset [s]
+  double t_gt1 = 0;          ///< [s]
+  double trans_error = 0;    ///< [m]
+  double rot_error_rad = 0;  ///< [rad]
 };
 
 /// Result of evaluate_rpe().
@@ -435,8 +436,10 @@ namespace detail {
   RpeResult res;
   const Trajectory g = detail::normalize_trajectory(gt, true, res.num_non_finite);
   const Trajectory e = detail::normalize_trajectory(est, true, res.num_non_finite);
-  DS3D_CHECK(g.size() >= 2 && e.size() >= 2, "ds3d::evaluate_rpe: need >= 2 poses in each "
-             "trajectory (got ", g.size(), " gt and ", e.size(), " estimate poses)");
+  DS3D_CHECK(g.size() >= 2 && e.size() >= 2,
+             "ds3d::evaluate_rpe: need >= 2 poses in each "
+             "trajectory (got ",
+             g.size(), " gt and ", e.size(), " estimate poses)");
   const std::vector<double> sg = detail::stamps_of(g);
   const std::vector<double> se = detail::stamps_of(e);
   std::vector<Eigen::Matrix4d> mg(g.size());
@@ -453,14 +456,17 @@ namespace detail {
     }
     std::sort(returned.begin(), returned.end());
     const auto distinct = std::unique(returned.begin(), returned.end()) - returned.begin();
-    DS3D_CHECK(distinct >= 2, "ds3d::evaluate_rpe: the timestamps of ground truth and estimate "
+    DS3D_CHECK(distinct >= 2,
+               "ds3d::evaluate_rpe: the timestamps of ground truth and estimate "
                "barely overlap (wrong files or offset?)");
   }
 
   const std::size_t n = e.size();
   std::vector<double> index(n);
   switch (options.delta_unit) {
-    case DeltaUnit::kSeconds: index = se; break;
+    case DeltaUnit::kSeconds:
+      index = se;
+      break;
     case DeltaUnit::kFrames:
       for (std::size_t i = 0; i < n; ++i) index[i] = static_cast<double>(i);
       break;
@@ -515,8 +521,7 @@ namespace detail {
   for (std::size_t i = 0; i + 1 < sg.size(); ++i) diffs[i] = sg[i + 1] - sg[i];
   std::sort(diffs.begin(), diffs.end());
   const std::size_t m = diffs.size() / 2;
-  const double gt_interval =
-      diffs.size() % 2 == 1 ? diffs[m] : (diffs[m - 1] + diffs[m]) / 2.0;
+  const double gt_interval = diffs.size() % 2 == 1 ? diffs[m] : (diffs[m - 1] + diffs[m]) / 2.0;
   const double gt_max_time_difference = 2 * gt_interval;
 
   std::vector<double> trans;
@@ -540,8 +545,8 @@ namespace detail {
       erel.topRightCorner<3, 1>() *= options.scale;
       err = detail::ominus(detail::ominus(mg[g0], mg[g1]), erel);
     }
-    RpePair p{te0, te1, sg[g0], sg[g1], err.topRightCorner<3, 1>().norm(),
-              detail::rotation_angle(err)};
+    RpePair p{
+        te0, te1, sg[g0], sg[g1], err.topRightCorner<3, 1>().norm(), detail::rotation_angle(err)};
     trans.push_back(p.trans_error);
     rot.push_back(p.rot_error_rad);
     res.pairs.push_back(p);

@@ -30,7 +30,8 @@ struct LeafSize {
   double dz = 0.05;  ///< edge along z [m], finite and > 0
   LeafSize() = default;
   /// Cubic voxels of edge `s` [m].
-  LeafSize(double s) : dx(s), dy(s), dz(s) {}  // NOLINT(google-explicit-constructor): `.leaf_size = 0.02`
+  LeafSize(double s)
+      : dx(s), dy(s), dz(s) {}  // NOLINT(google-explicit-constructor): `.leaf_size = 0.02`
   /// Anisotropic voxels [m].
   LeafSize(double x, double y, double z) : dx(x), dy(y), dz(z) {}
 };
@@ -49,12 +50,13 @@ struct VoxelGridParams {
 struct VoxelGridResult {
   /// Integer voxel keys, row-major M×3 (numpy (M, 3) int64).
   using Keys = Eigen::Matrix<std::int64_t, Eigen::Dynamic, 3, Eigen::RowMajor>;
-  Points3f centroids;                         ///< mean of each voxel's members [m] (double sums)
-  Keys keys;                                  ///< (ix, iy, iz) of each voxel
-  std::vector<std::uint32_t> counts;          ///< number of member points of each voxel
-  std::vector<std::uint32_t> representative;  ///< member nearest its centroid (input index; ties: lowest)
-  std::size_t num_non_finite = 0;             ///< input points skipped as non-finite
-  std::size_t num_dropped = 0;                ///< finite points in voxels below min_points
+  Points3f centroids;                 ///< mean of each voxel's members [m] (double sums)
+  Keys keys;                          ///< (ix, iy, iz) of each voxel
+  std::vector<std::uint32_t> counts;  ///< number of member points of each voxel
+  std::vector<std::uint32_t>
+      representative;              ///< member nearest its centroid (input index; ties: lowest)
+  std::size_t num_non_finite = 0;  ///< input points skipped as non-finite
+  std::size_t num_dropped = 0;     ///< finite points in voxels below min_points
 };
 
 /// Voxel-grid down-sampling: one centroid per occupied voxel of an origin-anchored grid.

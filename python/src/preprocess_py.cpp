@@ -6,6 +6,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
 #include <limits>
 #include <optional>
 
@@ -20,14 +21,14 @@ ds3d::PreprocessResult run(
     const Eigen::Ref<const ds3d::DepthImageU16, 0, Eigen::OuterStride<>>& depth, double fx,
     double fy, double cx, double cy, double depth_scale, double leaf_size, int stride,
     double min_depth, double max_depth, bool remove_ground, double ground_threshold,
-    std::int64_t ground_max_iterations, std::optional<Eigen::Vector3d> ground_normal_prior,
+    std::int64_t ground_max_iterations, std::optional<std::array<double, 3>> ground_normal_prior,
     double ground_max_angle_deg, bool remove_outliers, double outlier_radius,
     std::int64_t outlier_min_neighbors, int num_threads) {
   const char* fn = "ds3d.preprocess";
-  DS3D_CHECK(depth.rows() > 0 && depth.cols() > 0 && depth.rows() < (1 << 20) &&
-                 depth.cols() < (1 << 20),
-             fn, ": depth must be a non-empty (H, W) uint16 image (got ", depth.rows(), "x",
-             depth.cols(), ")");
+  DS3D_CHECK(
+      depth.rows() > 0 && depth.cols() > 0 && depth.rows() < (1 << 20) && depth.cols() < (1 << 20),
+      fn, ": depth must be a non-empty (H, W) uint16 image (got ", depth.rows(), "x", depth.cols(),
+      ")");
   DS3D_CHECK(ground_max_iterations >= 1 && ground_max_iterations <= 0xFFFFFFFFLL, fn,
              ": ground_max_iterations must be in [1, 2^32) (got ", ground_max_iterations, ")");
   DS3D_CHECK(outlier_min_neighbors >= 0 && outlier_min_neighbors <= 0xFFFFFFFFLL, fn,
@@ -48,7 +49,10 @@ ds3d::PreprocessResult run(
   p.remove_ground = remove_ground;
   p.ground.distance_threshold = ground_threshold;
   p.ground.max_iterations = static_cast<std::uint32_t>(ground_max_iterations);
-  p.ground.normal_prior = ground_normal_prior ? *ground_normal_prior : Eigen::Vector3d::Zero();
+  p.ground.normal_prior =
+      ground_normal_prior ? Eigen::Vector3d((*ground_normal_prior)[0], (*ground_normal_prior)[1],
+                                            (*ground_normal_prior)[2])
+                          : Eigen::Vector3d::Zero();
   p.ground.origin_above = static_cast<bool>(ground_normal_prior);
   p.ground.max_angle_deg = ground_max_angle_deg;
   p.remove_outliers = remove_outliers;
@@ -94,9 +98,11 @@ void bind_preprocess(py::module_& m) {
         py::arg("max_depth") = d.depth.max_depth, py::arg("remove_ground") = d.remove_ground,
         py::arg("ground_threshold") = d.ground.distance_threshold,
         py::arg("ground_max_iterations") = d.ground.max_iterations,
-        py::arg("ground_normal_prior") = std::optional<Eigen::Vector3d>(d.ground.normal_prior),
+        py::arg("ground_normal_prior") = std::optional<std::array<double, 3>>(std::array<double, 3>{
+            d.ground.normal_prior.x(), d.ground.normal_prior.y(), d.ground.normal_prior.z()}),
         py::arg("ground_max_angle_deg") = d.ground.max_angle_deg,
-        py::arg("remove_outliers") = d.remove_outliers, py::arg("outlier_radius") = d.outlier.radius,
+        py::arg("remove_outliers") = d.remove_outliers,
+        py::arg("outlier_radius") = d.outlier.radius,
         py::arg("outlier_min_neighbors") = d.outlier.min_neighbors,
         py::arg("num_threads") = d.num_threads,
         "Depth (H, W) uint16 -> voxel centroids -> ground removal -> radius outliers in one call\n"

@@ -34,7 +34,8 @@ void bind_radius_outlier(py::module_& m) {
                                         "Output of remove_radius_outliers "
                                         "(include/ds3d/radius_outlier.hpp).")
       .def_property_readonly(
-          "kept", [](const ds3d::RadiusOutlierResult& r) { return ds3d::py_util::to_numpy(r.kept); },
+          "kept",
+          [](const ds3d::RadiusOutlierResult& r) { return ds3d::py_util::to_numpy(r.kept); },
           "(K,) uint32 ascending input indices of kept points")
       .def_readonly("num_non_finite", &ds3d::RadiusOutlierResult::num_non_finite)
       .def("__repr__", [](const ds3d::RadiusOutlierResult& r) {
@@ -44,19 +45,13 @@ void bind_radius_outlier(py::module_& m) {
       "Keep points with >= min_neighbors other finite points within radius (<=, in double).\n"
       "See include/ds3d/radius_outlier.hpp. points: (N, 3) float32 or float64.\n"
       "Raises ValueError on bad parameters.";
-  m.def("remove_radius_outliers", &run<Eigen::Ref<const ds3d::Points3f>>,
+  m.def("_remove_radius_outliers", &run<Eigen::Ref<const ds3d::Points3f>>,
         py::arg("points").noconvert(), py::arg("radius"), py::arg("min_neighbors"),
         py::arg("num_threads") = 1, doc);
-  m.def("remove_radius_outliers", &run<Eigen::Ref<const ds3d::Points3d>>,
+  m.def("_remove_radius_outliers", &run<Eigen::Ref<const ds3d::Points3d>>,
         py::arg("points").noconvert(), py::arg("radius"), py::arg("min_neighbors"),
         py::arg("num_threads") = 1, doc);
-  m.def("remove_radius_outliers", &run<Eigen::Ref<const ds3d::Points3d>>, py::arg("points"),
+  m.def("_remove_radius_outliers", &run<Eigen::Ref<const ds3d::Points3d>>, py::arg("points"),
         py::arg("radius"), py::arg("min_neighbors"), py::arg("num_threads") = 1, doc);
-  m.def(
-      "remove_radius_outliers",
-      [](const py::object& points, const py::object&, const py::object&, const py::object&) {
-        ds3d::py_util::reject_points("ds3d.remove_radius_outliers", points);
-      },
-      py::arg("points"), py::arg("radius"), py::arg("min_neighbors"),
-      py::arg("num_threads") = 1);
+  ds3d::py_util::def_checked(m, "remove_radius_outliers", "_remove_radius_outliers", doc);
 }

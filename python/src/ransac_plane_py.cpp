@@ -7,6 +7,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
 #include <optional>
 
 #include "ds3d/ransac_plane.hpp"
@@ -19,7 +20,7 @@ namespace {
 template <class Ref>
 ds3d::RansacPlaneResult run(const Ref& points, double distance_threshold,
                             std::int64_t max_iterations, double confidence, std::uint64_t seed,
-                            int num_threads, std::optional<Eigen::Vector3d> normal_prior,
+                            int num_threads, std::optional<std::array<double, 3>> normal_prior,
                             double max_angle_deg, bool origin_above) {
   DS3D_CHECK(max_iterations >= 1 && max_iterations <= 0xFFFFFFFFLL,
              "ds3d.ransac_plane: max_iterations must be in [1, 2^32) (got ", max_iterations, ")");
@@ -29,7 +30,7 @@ ds3d::RansacPlaneResult run(const Ref& points, double distance_threshold,
   p.confidence = confidence;
   p.seed = seed;
   p.num_threads = num_threads;
-  if (normal_prior) p.normal_prior = *normal_prior;
+  if (normal_prior) p.normal_prior = {(*normal_prior)[0], (*normal_prior)[1], (*normal_prior)[2]};
   p.max_angle_deg = max_angle_deg;
   p.origin_above = origin_above;
   const py::gil_scoped_release release;
@@ -38,7 +39,7 @@ ds3d::RansacPlaneResult run(const Ref& points, double distance_threshold,
 
 template <class Ref>
 void def_overload(py::module_& m, bool noconvert, const char* doc) {
-  m.def("ransac_plane", &run<Ref>, py::arg("points").noconvert(noconvert),
+  m.def("_ransac_plane", &run<Ref>, py::arg("points").noconvert(noconvert),
         py::arg("distance_threshold"), py::arg("max_iterations") = 1000,
         py::arg("confidence") = 0.999, py::arg("seed") = 0, py::arg("num_threads") = 1,
         py::arg("normal_prior") = py::none(), py::arg("max_angle_deg") = 20.0,
@@ -70,10 +71,5 @@ void bind_ransac_plane(py::module_& m) {
   def_overload<Eigen::Ref<const ds3d::Points3f>>(m, true, doc);
   def_overload<Eigen::Ref<const ds3d::Points3d>>(m, true, doc);
   def_overload<Eigen::Ref<const ds3d::Points3d>>(m, false, doc);
-  m.def(
-      "ransac_plane",
-      [](const py::object& points, const py::args&, const py::kwargs&) {
-        ds3d::py_util::reject_points("ds3d.ransac_plane", points);
-      },
-      py::arg("points"));
+  ds3d::py_util::def_checked(m, "ransac_plane", "_ransac_plane", doc);
 }

@@ -67,9 +67,9 @@ ds3d::DepthToPointsResult run(const Eigen::Ref<const Image, 0, Eigen::OuterStrid
 
 template <class Image>
 void def_overload(py::module_& m, const char* doc) {
-  m.def("depth_to_points", &run<Image>, py::arg("depth").noconvert(), py::arg("fx"),
-        py::arg("fy"), py::arg("cx"), py::arg("cy"), py::arg("depth_scale") = 5000.0,
-        py::arg("stride") = 1, py::arg("roi") = py::none(), py::arg("min_depth") = 0.0,
+  m.def("depth_to_points", &run<Image>, py::arg("depth").noconvert(), py::arg("fx"), py::arg("fy"),
+        py::arg("cx"), py::arg("cy"), py::arg("depth_scale") = 5000.0, py::arg("stride") = 1,
+        py::arg("roi") = py::none(), py::arg("min_depth") = 0.0,
         py::arg("max_depth") = std::numeric_limits<double>::infinity(),
         py::arg("distortion") = py::none(), py::arg("undistort") = true, doc);
 }
@@ -94,9 +94,9 @@ void bind_rgbd(py::module_& m) {
   def_overload<ds3d::DepthImageU16>(m, doc);
   def_overload<ds3d::DepthImageF>(m, doc);
   // float64 (or other numeric) images: converted to float32 metres.
-  m.def("depth_to_points", &run<ds3d::DepthImageF>, py::arg("depth"), py::arg("fx"),
-        py::arg("fy"), py::arg("cx"), py::arg("cy"), py::arg("depth_scale") = 5000.0,
-        py::arg("stride") = 1, py::arg("roi") = py::none(), py::arg("min_depth") = 0.0,
+  m.def("depth_to_points", &run<ds3d::DepthImageF>, py::arg("depth"), py::arg("fx"), py::arg("fy"),
+        py::arg("cx"), py::arg("cy"), py::arg("depth_scale") = 5000.0, py::arg("stride") = 1,
+        py::arg("roi") = py::none(), py::arg("min_depth") = 0.0,
         py::arg("max_depth") = std::numeric_limits<double>::infinity(),
         py::arg("distortion") = py::none(), py::arg("undistort") = true, doc);
 }

@@ -46,7 +46,8 @@ void bind_voxel_grid(py::module_& m) {
       .def_readonly("centroids", &ds3d::VoxelGridResult::centroids, "(M, 3) float32 centroids")
       .def_readonly("keys", &ds3d::VoxelGridResult::keys, "(M, 3) int64 voxel keys, sorted")
       .def_property_readonly(
-          "counts", [](const ds3d::VoxelGridResult& r) { return ds3d::py_util::to_numpy(r.counts); },
+          "counts",
+          [](const ds3d::VoxelGridResult& r) { return ds3d::py_util::to_numpy(r.counts); },
           "(M,) uint32 member counts")
       .def_property_readonly(
           "representative",
@@ -61,17 +62,11 @@ void bind_voxel_grid(py::module_& m) {
       "Voxel-grid centroids on an origin-anchored grid (see include/ds3d/voxel_grid.hpp).\n"
       "points: (N, 3) float32 or float64; leaf_size: metres, a number or (dx, dy, dz).\n"
       "Non-finite rows are ignored. Raises ValueError on bad parameters.";
-  m.def("voxel_grid", &run<Eigen::Ref<const ds3d::Points3f>>, py::arg("points").noconvert(),
+  m.def("_voxel_grid", &run<Eigen::Ref<const ds3d::Points3f>>, py::arg("points").noconvert(),
         py::arg("leaf_size"), py::arg("num_threads") = 1, py::arg("min_points") = 1, doc);
-  m.def("voxel_grid", &run<Eigen::Ref<const ds3d::Points3d>>, py::arg("points").noconvert(),
+  m.def("_voxel_grid", &run<Eigen::Ref<const ds3d::Points3d>>, py::arg("points").noconvert(),
         py::arg("leaf_size"), py::arg("num_threads") = 1, py::arg("min_points") = 1, doc);
-  m.def("voxel_grid", &run<Eigen::Ref<const ds3d::Points3d>>, py::arg("points"),
+  m.def("_voxel_grid", &run<Eigen::Ref<const ds3d::Points3d>>, py::arg("points"),
         py::arg("leaf_size"), py::arg("num_threads") = 1, py::arg("min_points") = 1, doc);
-  m.def(
-      "voxel_grid",
-      [](const py::object& points, const py::object&, int, std::uint32_t) {
-        ds3d::py_util::reject_points("ds3d.voxel_grid", points);
-      },
-      py::arg("points"), py::arg("leaf_size"), py::arg("num_threads") = 1,
-      py::arg("min_points") = 1);
+  ds3d::py_util::def_checked(m, "voxel_grid", "_voxel_grid", doc);
 }

@@ -74,7 +74,8 @@ def test_forward_shapes_and_finite():
     assert torch.all(last["size"] <= extent + 1e-5)
     det = htx.reference_detect(m, pts)
     assert det.shape[1] == 9 and np.all(np.isfinite(det))
-    assert np.all(np.diff(det[:, 7]) <= 1.0)  # scores are probabilities
+    assert np.all((det[:, 7] >= 0) & (det[:, 7] <= 1))  # score = p[class] * objectness
+    assert np.all(det[:, 8] == 0)  # one class (person) in the default config
 
 
 def test_export_folds_batchnorm_exactly(tmp_path):

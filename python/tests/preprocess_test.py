@@ -52,6 +52,10 @@ def test_ransac_plane_finds_the_golden_plane():
     np.testing.assert_array_equal(r.inliers, np.flatnonzero(dist < 0.01))
     assert abs(abs(np.dot([a, b, c], meta["plane"][:3])) - 1) < 1e-3
     assert not ds3d.ransac_plane(np.zeros((2, 3), np.float32), 0.01).found
+    # Keyword conveniences: an integer tuple prior, a plain list of points.
+    prior = ds3d.ransac_plane(pts, 0.01, normal_prior=(0, 0, 1), max_angle_deg=30)
+    assert prior.found and prior.plane[2] > 0.9
+    assert ds3d.ransac_plane(pts[:50].tolist(), 1).found
 
 
 def test_depth_to_points_matches_golden_rows():
@@ -96,5 +100,9 @@ def test_bad_parameters_raise_value_error():
         ds3d.voxel_grid(pts, 0.1, num_threads=-1)
     with pytest.raises(ValueError, match=r"\(N, 3\)"):
         ds3d.voxel_grid(np.zeros((10, 4), np.float32), 0.1)
+    with pytest.raises(ValueError, match=r"\(N, 3\)"):
+        ds3d.remove_radius_outliers("not points", 0.1, 3)
+    with pytest.raises(ValueError, match=r"\(N, 3\)"):
+        ds3d.ransac_plane(np.zeros(9), 0.1)
     with pytest.raises(ValueError, match="fx"):
         ds3d.depth_to_points(np.ones((4, 4), np.uint16), -1.0, 1.0, 0.0, 0.0)

@@ -209,7 +209,7 @@ void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
   cv::putText(img, label.str(), {8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 255, 255), 1,
               cv::LINE_AA);
   char name[32];
-  std::snprintf(name, sizeof(name), "frame_%06zu.jpg", r.index);
+  std::snprintf(name, sizeof(name), "frame_%06zu.png", r.index);
   const auto path = dir / name;
   DS3D_CHECK_AS(ds3d::IoError, cv::imwrite(path.string(), img), "ds3d-slam: cannot write ",
                 path.string());
@@ -285,7 +285,11 @@ int run(const Args& a) {
   std::vector<double> de;
   std::vector<double> fi;
   std::vector<double> tr;
+  std::vector<double> ex_cpu;
+  std::vector<double> tr_cpu;
   for (const auto& r : results) {
+    ex_cpu.push_back(r.times.extract_cpu_ms);
+    tr_cpu.push_back(r.times.track_cpu_ms);
     tracked += r.tracked ? 1 : 0;
     lost += r.state == ds3d::slam::TrackState::kLost ? 1 : 0;
     relocalized += r.state == ds3d::slam::TrackState::kRelocalized ? 1 : 0;
@@ -322,14 +326,17 @@ int run(const Args& a) {
        << "  \"fps_median\": " << json_number(fps_p.median) << ",\n"
        << "  \"frame_interval\": {\"median_ms\": " << json_number(percentiles(frame_ms).median)
        << ", \"p95_ms\": " << json_number(percentiles(frame_ms).p95) << "},\n"
-       << "  \"local_ba\": {\"count\": " << slam.num_local_ba() << ", \"total_ms\": "
-       << json_number(slam.local_ba_ms()) << ", \"mean_ms\": "
+       << "  \"local_ba\": {\"count\": " << slam.num_local_ba() << ", \"total_cpu_ms\": "
+       << json_number(slam.local_ba_ms()) << ", \"mean_cpu_ms\": "
        << json_number(slam.num_local_ba() > 0 ? slam.local_ba_ms() / static_cast<double>(slam.num_local_ba()) : 0.0)
        << "},\n  \"stages\": {\n";
     stage("extract", ex, true);
     stage("detect", de, true);
     stage("filter", fi, true);
     stage("track", tr, false);
+    js << "  },\n  \"stages_cpu\": {\n";
+    stage("extract", ex_cpu, true);
+    stage("track", tr_cpu, false);
     js << "  }\n}\n";
     std::ofstream out(a.stats);
     out << js.str();

@@ -67,8 +67,8 @@ int main(int argc, char** argv) {
     if (out.empty()) return usage("missing OUT_DIR");
     const auto s = ds3d::synth::generate_sequence(out, opt);
     std::cout << "ds3d-synth: wrote " << s.frames << " frames of "
-              << ds3d::synth::scenario_name(opt.scenario) << " (seed " << opt.seed << ") to "
-              << out << "\n  render " << 1e3 * s.render_seconds / static_cast<double>(s.frames)
+              << ds3d::synth::scenario_name(opt.scenario) << " (seed " << opt.seed << ") to " << out
+              << "\n  render " << 1e3 * s.render_seconds / static_cast<double>(s.frames)
               << " ms/frame, total " << 1e3 * s.total_seconds / static_cast<double>(s.frames)
               << " ms/frame (with PNG writing), dynamic pixels/frame "
               << s.dynamic_pixels / s.frames << "\n";

@@ -5,8 +5,8 @@
 
 #include <gtest/gtest.h>
 
-#include <filesystem>
 #include <unistd.h>
+#include <filesystem>
 #include <fstream>
 #include <string>
 
@@ -103,7 +103,8 @@ TEST_F(TinyFolder, ClearErrors) {
   EXPECT_NE(message_of([&] { (void)ds.frame(1); }).find("16-bit"), std::string::npos);
   // unreadable image
   write_text(dir_ / "rgb/0.png", "not a png");
-  EXPECT_NE(message_of([&] { (void)ds.frame(0); }).find("cannot read rgb image"), std::string::npos);
+  EXPECT_NE(message_of([&] { (void)ds.frame(0); }).find("cannot read rgb image"),
+            std::string::npos);
   // a timestamp that is not a number
   write_text(dir_ / "rgb.txt", "10.0 rgb/0.png\nabc rgb/1.png\n");
   const std::string m = message_of([&] { (void)ds3d::RgbdDataset::open(dir_); });

@@ -124,16 +124,22 @@ TEST(OrbExtractor, AttachesDepthAndUndistorts) {
   cam.k2 = -0.5;
   cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(10000));  // 2 m
   depth(cv::Rect(0, 0, 320, 480)).setTo(0);              // left half missing
-  depth(cv::Rect(320, 0, 160, 480)).setTo(25000);        // 5 m: beyond max_depth (far)
+  depth(cv::Rect(320, 0, 160, 480)).setTo(60000);        // 12 m: beyond max_range
+  depth(cv::Rect(480, 0, 80, 480)).setTo(25000);         // 5 m: far, but measured
   const auto f = ex.extract(textured_image(4), depth, cam);
   ASSERT_GT(f.size(), 500U);
   for (std::size_t i = 0; i < f.size(); ++i) {
     const auto& k = f.keypoints[i];
     const int x = static_cast<int>(std::lround(k.pt.x));
-    if (x < 320 || (x >= 320 && x < 480)) {
+    if (x < 480) {
       EXPECT_EQ(f.depth[i], 0.0F);
+      EXPECT_FALSE(f.has_depth(i));
+    } else if (x < 560) {
+      EXPECT_FLOAT_EQ(f.depth[i], 5.0F);
+      EXPECT_FALSE(f.is_close(i));
     } else {
       EXPECT_FLOAT_EQ(f.depth[i], 2.0F);
+      EXPECT_TRUE(f.is_close(i));
     }
     // Re-distorting the undistorted pixel gives back the raw keypoint.
     const Eigen::Vector2d xn((f.undistorted[i].x() - cam.cx) / cam.fx, (f.undistorted[i].y() - cam.cy) / cam.fy);
@@ -172,6 +178,9 @@ TEST(OrbExtractor, RejectsBadInput) {
   EXPECT_THROW(OrbExtractor{p}, ds3d::InvalidArgument);
   p = {};
   p.min_depth = 5.0;
+  EXPECT_THROW(OrbExtractor{p}, ds3d::InvalidArgument);
+  p = {};
+  p.max_range = 1.0;
   EXPECT_THROW(OrbExtractor{p}, ds3d::InvalidArgument);
 }
 

@@ -6,9 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <filesystem>
-#include <unistd.h>
 #include <string>
 
 #include <opencv2/features2d.hpp>
@@ -22,8 +22,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using ds3d::synth::Scenario;
-using ds3d::synth::SynthOptions;
 using ds3d::synth::SyntheticScene;
+using ds3d::synth::SynthOptions;
 
 bool same(const cv::Mat& a, const cv::Mat& b) {
   return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0;
@@ -57,7 +57,8 @@ TEST(Synth, RejectsBadOptions) {
 }
 
 TEST(Synth, MasksMatchHumansAndBoxes) {
-  const SynthOptions opt{.scenario = Scenario::kWalkingStatic, .num_frames = 40, .seed = 3, .num_humans = 3};
+  const SynthOptions opt{
+      .scenario = Scenario::kWalkingStatic, .num_frames = 40, .seed = 3, .num_humans = 3};
   const SyntheticScene scene(opt);
   for (const std::size_t i : {std::size_t{0}, std::size_t{39}}) {
     const auto f = scene.render(i);
@@ -84,7 +85,8 @@ TEST(Synth, MasksMatchHumansAndBoxes) {
         const auto& b = f.boxes[h - 1U];
         const Eigen::Vector3d pw =
             f.T_world_cam * opt.camera.back_project(x, y, f.depth_true.at<float>(y, x));
-        const Eigen::Vector3d local = Eigen::AngleAxisd(-b.yaw, Eigen::Vector3d::UnitZ()) * (pw - b.center);
+        const Eigen::Vector3d local =
+            Eigen::AngleAxisd(-b.yaw, Eigen::Vector3d::UnitZ()) * (pw - b.center);
         if ((local.cwiseAbs() - 0.5 * b.size).maxCoeff() > 0.01) ++outside;
         const cv::Vec3f l = loc.at<cv::Vec3f>(y, x);
         for (int k = 0; k < 3; ++k) {
@@ -119,7 +121,8 @@ TEST(Synth, StaticRoomHasNoHumansAndSittingHumansSit) {
 }
 
 TEST(Synth, KinectLikeDepth) {
-  const SyntheticScene exact({.scenario = Scenario::kWalkingXyz, .num_frames = 1, .seed = 4, .depth_noise = false});
+  const SyntheticScene exact(
+      {.scenario = Scenario::kWalkingXyz, .num_frames = 1, .seed = 4, .depth_noise = false});
   const SyntheticScene noisy({.scenario = Scenario::kWalkingXyz, .num_frames = 1, .seed = 4});
   const auto fe = exact.render(0);
   const auto fn = noisy.render(0);
@@ -152,7 +155,8 @@ TEST(Synth, KinectLikeDepth) {
 }
 
 TEST(Synth, TexturedEnoughForOrb) {
-  const auto f = SyntheticScene({.scenario = Scenario::kStaticRoom, .num_frames = 1, .seed = 9}).render(0);
+  const auto f =
+      SyntheticScene({.scenario = Scenario::kStaticRoom, .num_frames = 1, .seed = 9}).render(0);
   std::vector<cv::KeyPoint> kps;
   cv::ORB::create(1000)->detect(f.rgb, kps);
   EXPECT_GE(kps.size(), 900U);

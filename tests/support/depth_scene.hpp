@@ -61,11 +61,11 @@ inline DepthFrame render_room(std::uint64_t seed, const PinholeCamera& camera = 
     for (int u = 0; u < w; ++u) {
       const double d[3] = {(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, 1.0};
       double t = std::numeric_limits<double>::infinity();
-      if (d[1] > 0) t = std::min(t, 1.2 / d[1]);    // floor y = 1.2
-      if (d[1] < 0) t = std::min(t, -1.4 / d[1]);   // ceiling y = -1.4
-      if (d[0] < 0) t = std::min(t, -2.0 / d[0]);   // left wall x = -2
-      if (d[0] > 0) t = std::min(t, 2.3 / d[0]);    // right wall x = 2.3
-      t = std::min(t, 4.6);                          // back wall z = 4.6
+      if (d[1] > 0) t = std::min(t, 1.2 / d[1]);   // floor y = 1.2
+      if (d[1] < 0) t = std::min(t, -1.4 / d[1]);  // ceiling y = -1.4
+      if (d[0] < 0) t = std::min(t, -2.0 / d[0]);  // left wall x = -2
+      if (d[0] > 0) t = std::min(t, 2.3 / d[0]);   // right wall x = 2.3
+      t = std::min(t, 4.6);                        // back wall z = 4.6
       t = std::min(t, scene_detail::ray_box(d, table_lo, table_hi));
       t = std::min(t, scene_detail::ray_box(d, person_lo, person_hi));
       double z = t;  // d.z = 1, so the ray parameter is the depth

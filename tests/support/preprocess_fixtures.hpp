@@ -34,7 +34,8 @@ inline std::vector<std::filesystem::path> preprocess_fixture_roots() {
 inline std::vector<std::filesystem::path> preprocess_cases(const std::filesystem::path& root) {
   std::vector<std::filesystem::path> out;
   for (const auto& e : std::filesystem::directory_iterator(root)) {
-    if (e.is_directory() && std::filesystem::exists(e.path() / "input.bin")) out.push_back(e.path());
+    if (e.is_directory() && std::filesystem::exists(e.path() / "input.bin"))
+      out.push_back(e.path());
   }
   std::sort(out.begin(), out.end());
   return out;

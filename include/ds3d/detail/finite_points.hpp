@@ -38,8 +38,8 @@ template <PointCloud C>
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3f p = cloud::point(c, i);
     if (!cloud::is_finite(p)) {
-      DS3D_CHECK(on_non_finite != NonFinite::kThrow, function, ": point ", i,
-                 " is not finite (", p.x(), ", ", p.y(), ", ", p.z(), ")");
+      DS3D_CHECK(on_non_finite != NonFinite::kThrow, function, ": point ", i, " is not finite (",
+                 p.x(), ", ", p.y(), ", ", p.z(), ")");
       ++f.num_non_finite;
       continue;
     }

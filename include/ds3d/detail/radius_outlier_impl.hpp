@@ -26,8 +26,8 @@ namespace detail {
 /// Position of the first cell whose key is >= (x, y, z) (lexicographic lower bound).
 inline std::size_t find_cell(const VoxelSort& s, std::int64_t x, std::int64_t y, std::int64_t z) {
   const std::array<std::int64_t, 3> key{x, y, z};
-  return static_cast<std::size_t>(
-      std::lower_bound(s.cell_key.begin(), s.cell_key.end(), key) - s.cell_key.begin());
+  return static_cast<std::size_t>(std::lower_bound(s.cell_key.begin(), s.cell_key.end(), key) -
+                                  s.cell_key.begin());
 }
 
 }  // namespace detail
@@ -42,7 +42,8 @@ RadiusOutlierResult remove_radius_outliers(const C& cloud, const RadiusOutlierPa
   // at most 1 as long as |x/h| < 2^31 (relative rounding error 2^-52 against a 1e-6 margin), so
   // every neighbour lies in the 27 surrounding cells.
   const double h = params.radius * (1.0 + 1e-6);
-  const detail::VoxelSort s = detail::sort_by_voxel(cloud, {h, h, h}, params.on_non_finite, threads, kFn);
+  const detail::VoxelSort s =
+      detail::sort_by_voxel(cloud, {h, h, h}, params.on_non_finite, threads, kFn);
   r.num_non_finite = s.num_non_finite;
   const std::size_t n = s.index.size();
   if (params.min_neighbors == 0) {

@@ -9,8 +9,8 @@
 
 #include <Eigen/Eigenvalues>
 
-#include "ds3d/detail/parallel.hpp"
 #include "ds3d/detail/finite_points.hpp"
+#include "ds3d/detail/parallel.hpp"
 #include "ds3d/ransac_plane.hpp"
 
 namespace ds3d {
@@ -22,8 +22,8 @@ inline void RansacPlaneParams::validate() const {
   DS3D_CHECK(max_iterations >= 1, fn, ": max_iterations must be >= 1 (got ", max_iterations, ")");
   DS3D_CHECK(confidence >= 0.0 && confidence <= 1.0, fn, ": confidence must be in [0, 1] (got ",
              confidence, ")");
-  DS3D_CHECK(normal_prior.allFinite(), fn, ": normal_prior must be finite (got ",
-             normal_prior.x(), ", ", normal_prior.y(), ", ", normal_prior.z(), ")");
+  DS3D_CHECK(normal_prior.allFinite(), fn, ": normal_prior must be finite (got ", normal_prior.x(),
+             ", ", normal_prior.y(), ", ", normal_prior.z(), ")");
   DS3D_CHECK(max_angle_deg > 0.0 && max_angle_deg <= 90.0, fn,
              ": max_angle_deg must be in (0, 90] (got ", max_angle_deg, ")");
   (void)detail::resolve_num_threads(num_threads, fn);
@@ -147,8 +147,7 @@ RansacPlaneResult ransac_plane(const C& cloud, const RansacPlaneParams& params) 
         if (params.confidence < 1.0 && best_count > 0) {
           const double w = static_cast<double>(best_count) / static_cast<double>(n);
           const double p_fail = 1.0 - w * w * w;
-          needed = p_fail <= 0.0 ? 1.0
-                                 : std::log(1.0 - params.confidence) / std::log(p_fail);
+          needed = p_fail <= 0.0 ? 1.0 : std::log(1.0 - params.confidence) / std::log(p_fail);
         }
       }
       if (static_cast<double>(r.iterations) >= needed) {

@@ -60,9 +60,9 @@ DepthToPointsResult depth_to_points_impl(const T* depth, int width, int height,
   const PixelRoi& roi = params.roi;
   const int u_end = roi.width == 0 ? width : roi.u0 + roi.width;
   const int v_end = roi.height == 0 ? height : roi.v0 + roi.height;
-  DS3D_CHECK(roi.u0 < width && roi.v0 < height && u_end <= width && v_end <= height, kFn,
-             ": roi (", roi.u0, ", ", roi.v0, ", ", roi.width, ", ", roi.height,
-             ") does not fit in the ", width, "x", height, " image");
+  DS3D_CHECK(roi.u0 < width && roi.v0 < height && u_end <= width && v_end <= height, kFn, ": roi (",
+             roi.u0, ", ", roi.v0, ", ", roi.width, ", ", roi.height, ") does not fit in the ",
+             width, "x", height, " image");
   const bool distorted = params.undistort && camera.has_distortion();
   PixelRays local;
   const PixelRays* rays = nullptr;

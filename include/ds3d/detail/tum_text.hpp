@@ -7,11 +7,11 @@
 // first character is '#', tokens are split on ' ' and stripped, numbers follow Python's float().
 // Also the atomic file writer (temp file + rename). Not API.
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <limits>

@@ -28,9 +28,9 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params) {
   constexpr const char* kFn = "ds3d::voxel_grid";
   params.validate();
   const int threads = detail::resolve_num_threads(params.num_threads, kFn);
-  const detail::VoxelSort s = detail::sort_by_voxel(
-      cloud, {params.leaf_size.dx, params.leaf_size.dy, params.leaf_size.dz},
-      params.on_non_finite, threads, kFn);
+  const detail::VoxelSort s =
+      detail::sort_by_voxel(cloud, {params.leaf_size.dx, params.leaf_size.dy, params.leaf_size.dz},
+                            params.on_non_finite, threads, kFn);
 
   const std::size_t num_cells = s.num_cells();
   VoxelGridResult r;

@@ -141,6 +141,8 @@ void build_cells(VoxelSort& s, SameCell&& same, KeyOf&& key_of) {
   const std::size_t n = s.index.size();
   s.cell_begin.clear();
   s.cell_key.clear();
+  s.cell_begin.reserve(n + 1);
+  s.cell_key.reserve(n);
   for (std::size_t k = 0; k < n; ++k) {
     if (k == 0 || !same(k - 1, k)) {
       s.cell_begin.push_back(static_cast<std::uint32_t>(k));
@@ -175,28 +177,61 @@ template <PointCloud C>
   std::vector<ChunkInfo> info(chunks);
   parallel_chunks(n, chunks, num_threads, [&](std::size_t b, std::size_t e, std::size_t ch) {
     ChunkInfo ci;
+    // Hot loop: keys of points well inside ±2^20 voxels and not within 2^-28 of a voxel
+    // boundary (where x * (1/dx) and x / dx could floor differently) are computed branch-free;
+    // everything else (non-finite, wide, near-boundary) takes the exact per-point path.
+    constexpr double kRange = 1048575.0;  // 2^20 - 1
+    constexpr double kTol = 0x1p-28;      // >= 2^-49 |q| + 2^-60 for |q| < 2^20
+    std::int64_t lo0 = ci.lo[0], lo1 = ci.lo[1], lo2 = ci.lo[2];
+    std::int64_t hi0 = ci.hi[0], hi1 = ci.hi[1], hi2 = ci.hi[2];
     for (std::size_t i = b; i < e; ++i) {
       const Eigen::Vector3f p = cloud::point(c, i);
-      if (!cloud::is_finite(p)) {
-        DS3D_CHECK(on_non_finite != NonFinite::kThrow, function, ": point ", i,
-                   " is not finite (", p.x(), ", ", p.y(), ", ", p.z(), ")");
-        ++ci.non_finite;
-        packed[i] = kNonFinite;
-        continue;
+      const double q0 = static_cast<double>(p.x()) * inv[0];
+      const double q1 = static_cast<double>(p.y()) * inv[1];
+      const double q2 = static_cast<double>(p.z()) * inv[2];
+      std::int64_t k0 = 0;
+      std::int64_t k1 = 0;
+      std::int64_t k2 = 0;
+      bool fast = std::abs(q0) < kRange && std::abs(q1) < kRange && std::abs(q2) < kRange;
+      if (fast) {
+        const auto t0 = static_cast<std::int64_t>(q0);
+        const auto t1 = static_cast<std::int64_t>(q1);
+        const auto t2 = static_cast<std::int64_t>(q2);
+        k0 = t0 - (q0 < static_cast<double>(t0) ? 1 : 0);
+        k1 = t1 - (q1 < static_cast<double>(t1) ? 1 : 0);
+        k2 = t2 - (q2 < static_cast<double>(t2) ? 1 : 0);
+        const double f0 = q0 - static_cast<double>(k0);
+        const double f1 = q1 - static_cast<double>(k1);
+        const double f2 = q2 - static_cast<double>(k2);
+        fast = (f0 > kTol) & (f0 < 1.0 - kTol) & (f1 > kTol) & (f1 < 1.0 - kTol) & (f2 > kTol) &
+               (f2 < 1.0 - kTol);
       }
-      const std::int64_t k[3] = {fast_voxel_index(p.x(), leaf[0], inv[0], function, "x"),
-                                 fast_voxel_index(p.y(), leaf[1], inv[1], function, "y"),
-                                 fast_voxel_index(p.z(), leaf[2], inv[2], function, "z")};
-      std::uint64_t w = 0;
-      for (int d = 0; d < 3; ++d) {
-        const auto du = static_cast<std::size_t>(d);
-        ci.lo[du] = std::min(ci.lo[du], k[d]);
-        ci.hi[du] = std::max(ci.hi[du], k[d]);
-        ci.wide = ci.wide || k[d] < -kHalf || k[d] >= kHalf;
-        w = (w << 21U) | (static_cast<std::uint64_t>(k[d] + kHalf) & 0x1FFFFFU);
+      if (!fast) {
+        if (!cloud::is_finite(p)) {
+          DS3D_CHECK(on_non_finite != NonFinite::kThrow, function, ": point ", i,
+                     " is not finite (", p.x(), ", ", p.y(), ", ", p.z(), ")");
+          ++ci.non_finite;
+          packed[i] = kNonFinite;
+          continue;
+        }
+        k0 = fast_voxel_index(p.x(), leaf[0], inv[0], function, "x");
+        k1 = fast_voxel_index(p.y(), leaf[1], inv[1], function, "y");
+        k2 = fast_voxel_index(p.z(), leaf[2], inv[2], function, "z");
+        ci.wide = ci.wide || k0 < -kHalf || k0 >= kHalf || k1 < -kHalf || k1 >= kHalf ||
+                  k2 < -kHalf || k2 >= kHalf;
       }
-      packed[i] = w;
+      lo0 = std::min(lo0, k0);
+      lo1 = std::min(lo1, k1);
+      lo2 = std::min(lo2, k2);
+      hi0 = std::max(hi0, k0);
+      hi1 = std::max(hi1, k1);
+      hi2 = std::max(hi2, k2);
+      packed[i] = (static_cast<std::uint64_t>(k0 + kHalf) & 0x1FFFFFU) << 42U |
+                  (static_cast<std::uint64_t>(k1 + kHalf) & 0x1FFFFFU) << 21U |
+                  (static_cast<std::uint64_t>(k2 + kHalf) & 0x1FFFFFU);
     }
+    ci.lo = {lo0, lo1, lo2};
+    ci.hi = {hi0, hi1, hi2};
     info[ch] = ci;
   });
   VoxelSort s;
@@ -235,10 +270,9 @@ template <PointCloud C>
     auto decode = [&](std::uint64_t ck) {
       const std::uint64_t mz = (std::uint64_t{1} << bz) - 1;
       const std::uint64_t my = (std::uint64_t{1} << by) - 1;
-      return std::array<std::int64_t, 3>{
-          static_cast<std::int64_t>(ck >> sx) + all.lo[0],
-          static_cast<std::int64_t>((ck >> sy) & my) + all.lo[1],
-          static_cast<std::int64_t>(ck & mz) + all.lo[2]};
+      return std::array<std::int64_t, 3>{static_cast<std::int64_t>(ck >> sx) + all.lo[0],
+                                         static_cast<std::int64_t>((ck >> sy) & my) + all.lo[1],
+                                         static_cast<std::int64_t>(ck & mz) + all.lo[2]};
     };
     if (bits <= 32) {
       std::vector<std::uint64_t> pairs;

@@ -1,0 +1,173 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// Bindings for include/ds3d/dataset.hpp and include/ds3d/synth.hpp (OpenCV parts). Images become
+// numpy arrays (copies); cameras become dicts. The Python API is ds3d.synth (python/ds3d/synth.py).
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cstring>
+#include <string>
+
+#include "ds3d/dataset.hpp"
+#include "ds3d/synth.hpp"
+
+namespace py = pybind11;
+
+namespace {
+
+template <class T>
+py::array mat_to_array(const cv::Mat& m) {
+  std::vector<py::ssize_t> shape{m.rows, m.cols};
+  if (m.channels() > 1) shape.push_back(m.channels());
+  py::array_t<T> a(shape);
+  const std::size_t row_bytes = static_cast<std::size_t>(m.cols) * m.elemSize();
+  for (int y = 0; y < m.rows; ++y) {
+    std::memcpy(reinterpret_cast<char*>(a.mutable_data()) + static_cast<std::size_t>(y) * row_bytes,
+                m.ptr(y), row_bytes);
+  }
+  return a;
+}
+
+py::dict camera_dict(const ds3d::PinholeCamera& c) {
+  py::dict d;
+  d["fx"] = c.fx;
+  d["fy"] = c.fy;
+  d["cx"] = c.cx;
+  d["cy"] = c.cy;
+  d["width"] = c.width;
+  d["height"] = c.height;
+  d["k1"] = c.k1;
+  d["k2"] = c.k2;
+  d["p1"] = c.p1;
+  d["p2"] = c.p2;
+  d["k3"] = c.k3;
+  d["depth_scale"] = c.depth_scale;
+  return d;
+}
+
+py::dict frame_dict(const ds3d::synth::SynthFrame& f) {
+  py::dict d;
+  d["index"] = f.index;
+  d["timestamp"] = f.timestamp;
+  d["T_world_cam"] = py::array_t<double>({4, 4});
+  Eigen::Matrix<double, 4, 4, Eigen::RowMajor> m = f.T_world_cam.matrix();
+  std::memcpy(d["T_world_cam"].cast<py::array_t<double>>().mutable_data(), m.data(),
+              sizeof(double) * 16);
+  d["rgb"] = mat_to_array<std::uint8_t>(f.rgb);
+  d["depth"] = mat_to_array<std::uint16_t>(f.depth);
+  d["depth_true"] = mat_to_array<float>(f.depth_true);
+  d["dynamic_mask"] = mat_to_array<std::uint8_t>(f.dynamic_mask);
+  d["human_id"] = mat_to_array<std::uint8_t>(f.human_id);
+  d["part_id"] = mat_to_array<std::uint8_t>(f.part_id);
+  py::list boxes;
+  for (const auto& b : f.boxes) {
+    py::dict x;
+    x["id"] = b.id;
+    x["center"] = std::vector<double>{b.center.x(), b.center.y(), b.center.z()};
+    x["size"] = std::vector<double>{b.size.x(), b.size.y(), b.size.z()};
+    x["yaw"] = b.yaw;
+    x["sitting"] = b.sitting;
+    x["visible_pixels"] = b.visible_pixels;
+    boxes.append(x);
+  }
+  d["boxes"] = boxes;
+  return d;
+}
+
+ds3d::synth::SynthOptions make_options(const std::string& scenario, int frames, std::uint64_t seed,
+                                       int humans, double fps, bool depth_noise, bool parts) {
+  ds3d::synth::SynthOptions o;
+  o.scenario = ds3d::synth::parse_scenario(scenario);
+  o.num_frames = frames;
+  o.seed = seed;
+  o.num_humans = humans;
+  o.fps = fps;
+  o.depth_noise = depth_noise;
+  o.write_parts = parts;
+  return o;
+}
+
+}  // namespace
+
+void bind_synth(py::module_& m) {
+  m.def(
+      "camera_preset", [](const std::string& n) { return camera_dict(ds3d::camera_preset(n)); },
+      py::arg("name"), "Intrinsics dict for 'tum1', 'tum2', 'tum3', 'tum_ros' or 'bonn'.");
+  m.def(
+      "read_camera_file",
+      [](const std::string& p) { return camera_dict(ds3d::read_camera_file(p)); }, py::arg("path"),
+      "camera.txt (fx fy cx cy k1 k2 p1 p2 k3 depth_scale) as a dict.");
+
+  py::class_<ds3d::RgbdDataset>(
+      m, "RgbdDataset", "A TUM/Bonn RGB-D folder read frame by frame (include/ds3d/dataset.hpp).")
+      .def(py::init([](const std::string& dir, double max_difference, double offset) {
+             return ds3d::RgbdDataset::open(dir,
+                                            {.max_difference = max_difference, .offset = offset});
+           }),
+           py::arg("directory"), py::arg("max_difference") = 0.02, py::arg("offset") = 0.0)
+      .def("__len__", &ds3d::RgbdDataset::size)
+      .def(
+          "frame",
+          [](const ds3d::RgbdDataset& ds, std::size_t i) {
+            ds3d::RgbdFrame f;
+            {
+              py::gil_scoped_release release;
+              f = ds.frame(i);
+            }
+            py::dict d;
+            d["index"] = f.index;
+            d["timestamp"] = f.timestamp;
+            d["depth_timestamp"] = f.depth_timestamp;
+            d["rgb"] = mat_to_array<std::uint8_t>(f.rgb);
+            d["depth"] = mat_to_array<std::uint16_t>(f.depth);
+            return d;
+          },
+          py::arg("i"),
+          "dict: index, timestamp, depth_timestamp, rgb (H,W,3 BGR uint8), depth (H,W uint16)")
+      .def_property_readonly("camera",
+                             [](const ds3d::RgbdDataset& ds) { return camera_dict(ds.camera()); })
+      .def_property_readonly("directory",
+                             [](const ds3d::RgbdDataset& ds) { return ds.directory().string(); })
+      .def_property_readonly("groundtruth_path", [](const ds3d::RgbdDataset& ds) -> py::object {
+        const auto p = ds.groundtruth_path();
+        return p ? py::object(py::str(p->string())) : py::object(py::none());
+      });
+
+  py::class_<ds3d::synth::SyntheticScene>(m, "_SyntheticScene")
+      .def(py::init([](const std::string& scenario, int frames, std::uint64_t seed, int humans,
+                       double fps, bool depth_noise) {
+             return ds3d::synth::SyntheticScene(
+                 make_options(scenario, frames, seed, humans, fps, depth_noise, false));
+           }),
+           py::arg("scenario"), py::arg("frames"), py::arg("seed"), py::arg("humans"),
+           py::arg("fps"), py::arg("depth_noise"))
+      .def("__len__", &ds3d::synth::SyntheticScene::size)
+      .def("render", [](const ds3d::synth::SyntheticScene& s, std::size_t i) {
+        ds3d::synth::SynthFrame f;
+        {
+          py::gil_scoped_release release;
+          f = s.render(i);
+        }
+        return frame_dict(f);
+      });
+  m.def(
+      "_synth_generate",
+      [](const std::string& out_dir, const std::string& scenario, int frames, std::uint64_t seed,
+         int humans, double fps, bool depth_noise, bool parts) {
+        const auto o = make_options(scenario, frames, seed, humans, fps, depth_noise, parts);
+        ds3d::synth::SynthSummary s;
+        {
+          py::gil_scoped_release release;
+          s = ds3d::synth::generate_sequence(out_dir, o);
+        }
+        py::dict d;
+        d["frames"] = s.frames;
+        d["dynamic_pixels"] = s.dynamic_pixels;
+        d["render_seconds"] = s.render_seconds;
+        d["total_seconds"] = s.total_seconds;
+        return d;
+      },
+      py::arg("out_dir"), py::arg("scenario"), py::arg("frames"), py::arg("seed"),
+      py::arg("humans"), py::arg("fps"), py::arg("depth_noise"), py::arg("parts"));
+}

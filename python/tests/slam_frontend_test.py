@@ -1,0 +1,55 @@
+# SPDX-License-Identifier: Apache-2.0
+# SPDX-FileCopyrightText: 2026 ds3d authors
+import numpy as np
+import pytest
+
+import ds3d
+
+
+def textured(seed, h=480, w=640):
+    rng = np.random.default_rng(seed)
+    img = np.full((h, w, 3), 90, np.uint8)
+    for _ in range(1500):
+        y, x = rng.integers(0, h - 20), rng.integers(0, w - 20)
+        s = rng.integers(3, 20)
+        img[y:y + s, x:x + s] = rng.integers(0, 255, 3)
+    return img
+
+
+def test_static_camera_stays_at_origin():
+    slam = ds3d.Slam(ds3d.SlamConfig())
+    rgb = textured(1)
+    depth = np.full(rgb.shape[:2], 10000, np.uint16)  # a wall 2 m away
+    for i in range(5):
+        pose = slam.track(rgb, depth, 0.1 * i)
+        assert pose.shape == (4, 4)
+        assert np.all(np.isfinite(pose))
+        assert slam.last_tracked
+    slam.finish()
+    assert np.allclose(pose, np.eye(4), atol=1e-3)
+    traj = slam.trajectory()
+    assert traj.shape == (5, 8)
+    assert np.allclose(traj[:, 0], 0.1 * np.arange(5))
+    pts = slam.map_points()
+    assert pts.dtype == np.float32 and pts.shape[1] == 3 and len(pts) > 100
+    assert np.allclose(pts[:, 2], 2.0, atol=0.01)
+
+
+def test_bad_input_raises_value_error():
+    slam = ds3d.Slam()
+    with pytest.raises(ValueError):
+        slam.track(np.zeros((10, 10, 3), np.uint8), None, 0.0)
+    with pytest.raises(ValueError):
+        slam.track(np.zeros((480, 640), np.uint8), None, 0.0)
+    slam.track(np.zeros((480, 640, 3), np.uint8), None, 1.0)
+    assert slam.last_state == "not_initialized"
+    with pytest.raises(ValueError):
+        slam.track(np.zeros((480, 640, 3), np.uint8), None, 0.5)  # time went backwards
+    cfg = ds3d.SlamConfig()
+    cfg.fx = -1.0
+    with pytest.raises(ValueError):
+        ds3d.Slam(cfg)
+    with pytest.raises(ValueError):
+        ds3d.run_slam(".", max_frames=-1)
+    with pytest.raises(RuntimeError):
+        ds3d.run_slam("/nonexistent/dataset")

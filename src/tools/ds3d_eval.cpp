@@ -1,0 +1,176 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// ds3d-eval: ATE and RPE of a TUM-format estimate against ground truth, with the numbers of the
+// TUM benchmark scripts (evaluate_ate.py / evaluate_rpe.py --verbose) or one JSON object.
+//   ds3d-eval ate GT EST [--max-difference 0.02] [--offset 0] [--scale 1] [--align se3|sim3|none]
+//                        [--plot out.png] [--json]
+//   ds3d-eval rpe GT EST [--delta 1] [--delta-unit s|f|m|rad|deg] [--offset 0] [--scale 1]
+//                        [--all-pairs] [--max-pairs 10000] [--evo] [--seed 1] [--json]
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "ds3d/detail/json.hpp"
+#include "ds3d/errors.hpp"
+#include "ds3d/trajectory.hpp"
+#include "ds3d/trajectory_metrics.hpp"
+#include "ds3d/trajectory_plot.hpp"
+
+namespace {
+
+using ds3d::detail::json_number;
+
+int usage(const std::string& msg) {
+  std::cerr << "ds3d-eval: " << msg << "\n"
+            << "usage: ds3d-eval ate GT EST [--max-difference 0.02] [--offset 0] [--scale 1]\n"
+            << "                 [--align se3|sim3|none] [--plot out.png] [--json]\n"
+            << "       ds3d-eval rpe GT EST [--delta 1] [--delta-unit s|f|m|rad|deg] [--offset 0]\n"
+            << "                 [--scale 1] [--all-pairs] [--max-pairs 10000] [--evo] [--seed 1]\n"
+            << "                 [--json]\n";
+  return 2;
+}
+
+double to_double(const std::string& flag, const std::string& v) {
+  const auto d = ds3d::detail::parse_py_float(v);
+  if (!d) throw ds3d::InvalidArgument("ds3d-eval: " + flag + " expects a number (got '" + v + "')");
+  return *d;
+}
+
+std::string stats_json(const ds3d::ErrorStats& s, const char* unit) {
+  return std::string("{\"unit\":\"") + unit + "\",\"rmse\":" + json_number(s.rmse) +
+         ",\"mean\":" + json_number(s.mean) + ",\"median\":" + json_number(s.median) +
+         ",\"std\":" + json_number(s.std) + ",\"min\":" + json_number(s.min) +
+         ",\"max\":" + json_number(s.max) + "}";
+}
+
+void print_line(const char* name, double v, const char* unit) {
+  std::printf("%s %f %s\n", name, v, unit);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    if (argc < 4) return usage("expected a command and two files");
+    const std::string cmd = argv[1];
+    if (cmd != "ate" && cmd != "rpe") return usage("unknown command '" + cmd + "'");
+    const std::string gt_path = argv[2];
+    const std::string est_path = argv[3];
+    ds3d::AteOptions ate;
+    ds3d::RpeOptions rpe;
+    std::string plot;
+    bool json = false;
+    for (int i = 4; i < argc; ++i) {
+      const std::string a = argv[i];
+      const auto value = [&]() -> std::string {
+        if (i + 1 >= argc) throw ds3d::InvalidArgument("ds3d-eval: " + a + " needs a value");
+        return argv[++i];
+      };
+      if (a == "--json") {
+        json = true;
+      } else if (a == "--offset") {
+        ate.offset = rpe.offset = to_double(a, value());
+      } else if (a == "--scale") {
+        ate.scale = rpe.scale = to_double(a, value());
+      } else if (cmd == "ate" && a == "--max-difference") {
+        ate.max_difference = to_double(a, value());
+      } else if (cmd == "ate" && a == "--align") {
+        ate.alignment = ds3d::parse_alignment(value());
+      } else if (cmd == "ate" && a == "--plot") {
+        plot = value();
+      } else if (cmd == "rpe" && a == "--delta") {
+        rpe.delta = to_double(a, value());
+      } else if (cmd == "rpe" && a == "--delta-unit") {
+        rpe.delta_unit = ds3d::parse_delta_unit(value());
+      } else if (cmd == "rpe" && a == "--all-pairs") {
+        rpe.fixed_delta = false;
+      } else if (cmd == "rpe" && a == "--max-pairs") {
+        const double m = to_double(a, value());
+        if (!(m >= 0 && m < 1e12 && m == static_cast<double>(static_cast<long long>(m)))) {
+          throw ds3d::InvalidArgument("ds3d-eval: --max-pairs must be a non-negative integer");
+        }
+        rpe.max_pairs = static_cast<std::size_t>(m);
+      } else if (cmd == "rpe" && a == "--evo") {
+        rpe.convention = ds3d::RpeConvention::kEvo;
+      } else if (cmd == "rpe" && a == "--seed") {
+        rpe.seed = static_cast<std::uint64_t>(to_double(a, value()));
+      } else {
+        return usage("unknown option '" + a + "' for " + cmd);
+      }
+    }
+    if (cmd == "ate") {
+      // evaluate_ate.py reads positions only: a 0 0 0 0 quaternion does not drop a line.
+      const auto gt = ds3d::read_tum_file(gt_path, {.keep_zero_quaternion = true}).trajectory;
+      const auto est = ds3d::read_tum_file(est_path, {.keep_zero_quaternion = true}).trajectory;
+      const auto r = ds3d::evaluate_ate(gt, est, ate);
+      if (!plot.empty()) {
+        ds3d::write_ate_plot(plot, gt, r, {.title = "ATE  " + est_path + "  vs  " + gt_path});
+      }
+      if (json) {
+        std::string out = "{\"compared_pose_pairs\":" + std::to_string(r.compared_pose_pairs) +
+                          ",\"unit\":\"m\",\"rmse\":" + json_number(r.rmse) +
+                          ",\"mean\":" + json_number(r.mean) +
+                          ",\"median\":" + json_number(r.median) +
+                          ",\"std\":" + json_number(r.std) + ",\"min\":" + json_number(r.min) +
+                          ",\"max\":" + json_number(r.max) + ",\"alignment\":{\"rotation\":[";
+        for (int k = 0; k < 3; ++k) {
+          out += (k ? ",[" : "[");
+          for (int j = 0; j < 3; ++j) out += (j ? "," : "") + json_number(r.rotation(k, j));
+          out += "]";
+        }
+        out += "],\"translation\":[";
+        for (int k = 0; k < 3; ++k) out += (k ? "," : "") + json_number(r.translation(k));
+        out += "],\"scale\":" + json_number(r.scale_factor) +
+               ",\"convention\":\"p_gt ~= scale * rotation @ p_est + translation\"}}";
+        std::cout << out << "\n";
+      } else {
+        std::printf("compared_pose_pairs %zu pairs\n", r.compared_pose_pairs);
+        print_line("absolute_translational_error.rmse", r.rmse, "m");
+        print_line("absolute_translational_error.mean", r.mean, "m");
+        print_line("absolute_translational_error.median", r.median, "m");
+        print_line("absolute_translational_error.std", r.std, "m");
+        print_line("absolute_translational_error.min", r.min, "m");
+        print_line("absolute_translational_error.max", r.max, "m");
+        if (ate.alignment == ds3d::Alignment::kSim3)
+          print_line("alignment.scale", r.scale_factor, "");
+      }
+    } else {
+      const auto gt = ds3d::read_tum_trajectory(gt_path);
+      const auto est = ds3d::read_tum_trajectory(est_path);
+      const auto r = ds3d::evaluate_rpe(gt, est, rpe);
+      if (json) {
+        std::cout << "{\"compared_pose_pairs\":" << r.compared_pose_pairs
+                  << ",\"translational\":" << stats_json(r.translational, "m")
+                  << ",\"rotational\":" << stats_json(r.rotational, "deg")
+                  << ",\"rotational_rad\":" << stats_json(r.rotational_rad, "rad")
+                  << ",\"subsampled\":" << (r.subsampled ? "true" : "false") << "}\n";
+      } else {
+        // evaluate_rpe.py --verbose, except that the median is really in degrees here.
+        std::printf("compared_pose_pairs %zu pairs\n", r.compared_pose_pairs);
+        const auto& t = r.translational;
+        const auto& d = r.rotational;
+        print_line("translational_error.rmse", t.rmse, "m");
+        print_line("translational_error.mean", t.mean, "m");
+        print_line("translational_error.median", t.median, "m");
+        print_line("translational_error.std", t.std, "m");
+        print_line("translational_error.min", t.min, "m");
+        print_line("translational_error.max", t.max, "m");
+        print_line("rotational_error.rmse", d.rmse, "deg");
+        print_line("rotational_error.mean", d.mean, "deg");
+        print_line("rotational_error.median", d.median, "deg");
+        print_line("rotational_error.std", d.std, "deg");
+        print_line("rotational_error.min", d.min, "deg");
+        print_line("rotational_error.max", d.max, "deg");
+      }
+    }
+    return 0;
+  } catch (const ds3d::InvalidArgument& e) {
+    std::cerr << "ds3d-eval: error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "ds3d-eval: error: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,224 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#include "ds3d/slam_frontend.hpp"
+
+#include <atomic>
+#include <cmath>
+#include <optional>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "ds3d/errors.hpp"
+#include "ds3d/synth.hpp"
+#include "ds3d/trajectory_metrics.hpp"
+
+namespace {
+
+using ds3d::slam::FrameInput;
+using ds3d::slam::FrontendConfig;
+using ds3d::slam::SlamFrontend;
+using ds3d::slam::TrackState;
+
+// Short synthetic sequences (a second or two of CI each).
+std::vector<ds3d::synth::SynthFrame> render(ds3d::synth::Scenario s, int frames, std::uint64_t seed = 1) {
+  ds3d::synth::SynthOptions o;
+  o.scenario = s;
+  o.num_frames = frames;
+  o.seed = seed;
+  const ds3d::synth::SyntheticScene scene(o);
+  std::vector<ds3d::synth::SynthFrame> out;
+  for (std::size_t i = 0; i < scene.size(); ++i) out.push_back(scene.render(i));
+  return out;
+}
+
+ds3d::Trajectory ground_truth(const std::vector<ds3d::synth::SynthFrame>& frames) {
+  ds3d::Trajectory gt;
+  for (const auto& f : frames) gt.push_back({f.timestamp, f.T_world_cam});
+  return gt;
+}
+
+FrontendConfig synth_config() {
+  FrontendConfig c;
+  c.camera = ds3d::synth::SynthOptions{}.camera;
+  return c;
+}
+
+struct SlamRun {
+  std::vector<ds3d::slam::TrackResult> results;
+  ds3d::Trajectory trajectory;
+  double ate = 0;
+};
+
+SlamRun run(const std::vector<ds3d::synth::SynthFrame>& frames, FrontendConfig cfg, bool threaded,
+        std::shared_ptr<ds3d::slam::DynamicFeatureMasker> masker = nullptr) {
+  SlamFrontend slam(cfg, nullptr, std::move(masker));
+  std::size_t i = 0;
+  const auto next = [&]() -> std::optional<FrameInput> {
+    if (i >= frames.size()) return std::nullopt;
+    const auto& f = frames[i];
+    FrameInput in;
+    in.index = i++;
+    in.timestamp = f.timestamp;
+    in.rgb = f.rgb;
+    in.depth = f.depth;
+    return in;
+  };
+  ds3d::slam::PipelineOptions po;
+  po.threaded = threaded;
+  SlamRun r;
+  r.results = ds3d::slam::run_pipeline(slam, next, {}, po);
+  r.trajectory = ds3d::slam::to_trajectory(slam.trajectory());
+  r.ate = ds3d::evaluate_ate(ground_truth(frames), r.trajectory).rmse;
+  return r;
+}
+
+TEST(SlamFrontend, StaticRoomIsAccurate) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 60);
+  const SlamRun r = run(frames, synth_config(), true);
+  ASSERT_EQ(r.trajectory.size(), frames.size());
+  int tracked = 0;
+  for (const auto& res : r.results) tracked += res.tracked ? 1 : 0;
+  EXPECT_EQ(tracked, static_cast<int>(frames.size()));
+  EXPECT_LE(r.ate, 0.005);
+  for (const auto& p : r.trajectory) EXPECT_TRUE(p.T_world_cam.matrix().allFinite());
+}
+
+TEST(SlamFrontend, SittingStaticIsAccurate) {
+  const auto frames = render(ds3d::synth::Scenario::kSittingStatic, 60);
+  const SlamRun r = run(frames, synth_config(), true);
+  EXPECT_LE(r.ate, 0.005);
+}
+
+TEST(SlamFrontend, ThreadedPipelineGivesIdenticalPoses) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 30, 3);
+  const SlamRun a = run(frames, synth_config(), true);
+  FrontendConfig sync = synth_config();
+  sync.mapping_thread = false;
+  const SlamRun b = run(frames, sync, false);
+  ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
+  for (std::size_t i = 0; i < a.trajectory.size(); ++i) {
+    EXPECT_TRUE(a.trajectory[i].T_world_cam.matrix() == b.trajectory[i].T_world_cam.matrix()) << "frame " << i;
+  }
+}
+
+TEST(SlamFrontend, SurvivesBlackFramesDroppedFramesAndMissingDepth) {
+  auto frames = render(ds3d::synth::Scenario::kStaticRoom, 60, 5);
+  SlamFrontend slam(synth_config());
+  std::vector<TrackState> states;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (i >= 20 && i < 24) continue;  // dropped frames: a gap in time
+    cv::Mat rgb = frames[i].rgb;
+    cv::Mat depth = frames[i].depth;
+    if (i >= 30 && i < 33) rgb = cv::Mat::zeros(rgb.size(), rgb.type());   // black frames
+    if (i >= 40 && i < 43) depth = cv::Mat::zeros(depth.size(), depth.type());  // no depth
+    const auto r = slam.track(rgb, depth, frames[i].timestamp);
+    EXPECT_TRUE(r.T_world_cam.matrix().allFinite());
+    states.push_back(r.state);
+  }
+  slam.finish();
+  // Black frames are lost (no features), and tracking comes back afterwards.
+  EXPECT_EQ(states[30 - 4], TrackState::kLost);
+  EXPECT_TRUE(states.back() == TrackState::kTracking || states.back() == TrackState::kRelocalized);
+  const auto traj = slam.trajectory();
+  EXPECT_EQ(traj.size(), states.size());
+}
+
+TEST(SlamFrontend, TimeGoingBackwardsIsAnError) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 3, 6);
+  SlamFrontend slam(synth_config());
+  (void)slam.track(frames[1].rgb, frames[1].depth, frames[1].timestamp);
+  EXPECT_THROW((void)slam.track(frames[0].rgb, frames[0].depth, frames[0].timestamp), ds3d::InvalidArgument);
+  EXPECT_THROW((void)slam.track(frames[2].rgb, frames[2].depth, std::nan("")), ds3d::InvalidArgument);
+}
+
+TEST(SlamFrontend, NoDepthAtStartDoesNotInitialize) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 2, 7);
+  SlamFrontend slam(synth_config());
+  const auto r = slam.track(frames[0].rgb, cv::Mat(), frames[0].timestamp);
+  EXPECT_EQ(r.state, TrackState::kNotInitialized);
+  EXPECT_FALSE(r.tracked);
+  EXPECT_TRUE(r.T_world_cam.isApprox(Eigen::Isometry3d::Identity()));
+  const auto r2 = slam.track(frames[1].rgb, frames[1].depth, frames[1].timestamp);
+  EXPECT_EQ(r2.state, TrackState::kInitialized);
+}
+
+TEST(SlamFrontend, RejectsBadConfigAndImages) {
+  FrontendConfig c = synth_config();
+  c.bf = -1;
+  EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
+  c = synth_config();
+  c.local_window = 1;
+  EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
+  c = synth_config();
+  c.camera.fx = 0;
+  EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
+  SlamFrontend slam(synth_config());
+  EXPECT_THROW((void)slam.track(cv::Mat::zeros(10, 10, CV_8UC3), cv::Mat(), 0.0), ds3d::InvalidArgument);
+  ds3d::slam::PipelineOptions po;
+  po.queue_capacity = 0;
+  EXPECT_THROW((void)ds3d::slam::run_pipeline(slam, [] { return std::optional<FrameInput>(); }, {}, po),
+               ds3d::InvalidArgument);
+}
+
+// A filter that marks every keypoint in the left half as dynamic, and counts its calls.
+class LeftHalfMasker final : public ds3d::slam::DynamicFeatureMasker {
+ public:
+  std::vector<std::uint8_t> mask(const FrameInput& frame, const ds3d::PinholeCamera&,
+                                 const ds3d::slam::OrbFeatures& f,
+                                 const ds3d::slam::DynamicObjects&) override {
+    ++calls;
+    std::vector<std::uint8_t> m(f.size());
+    for (std::size_t i = 0; i < f.size(); ++i) m[i] = f.keypoints[i].pt.x < static_cast<float>(frame.rgb.cols) / 2 ? 1 : 0;
+    return m;
+  }
+  [[nodiscard]] std::string name() const override { return "left-half"; }
+  std::atomic<int> calls{0};
+};
+
+TEST(SlamFrontend, DynamicMaskerRemovesKeypointsBeforeTracking) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 20, 8);
+  auto masker = std::make_shared<LeftHalfMasker>();
+  const SlamRun r = run(frames, synth_config(), true, masker);
+  EXPECT_EQ(masker->calls.load(), 20);
+  for (const auto& res : r.results) {
+    EXPECT_GT(res.num_dynamic, 0);
+    for (std::size_t i = 0; i < res.keypoints.size(); ++i) {
+      const bool left = res.keypoints[i].x < 320.0F;
+      EXPECT_EQ(res.keypoint_status[i] == ds3d::slam::KeypointStatus::kDynamic, left);
+    }
+  }
+}
+
+TEST(SlamFrontend, MasksOfTheWrongSizeAreAnError) {
+  class Bad final : public ds3d::slam::DynamicFeatureMasker {
+   public:
+    std::vector<std::uint8_t> mask(const FrameInput&, const ds3d::PinholeCamera&, const ds3d::slam::OrbFeatures&,
+                                   const ds3d::slam::DynamicObjects&) override {
+      return {1};
+    }
+    [[nodiscard]] std::string name() const override { return "bad"; }
+  };
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 1, 9);
+  SlamFrontend slam(synth_config(), nullptr, std::make_shared<Bad>());
+  EXPECT_THROW((void)slam.track(frames[0].rgb, frames[0].depth, frames[0].timestamp), ds3d::InvalidArgument);
+}
+
+TEST(SlamFrontend, OutputsMapAndKeyframes) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 30, 10);
+  SlamFrontend slam(synth_config());
+  for (const auto& f : frames) (void)slam.track(f.rgb, f.depth, f.timestamp);
+  slam.finish();
+  EXPECT_GE(slam.num_keyframes(), 1U);
+  EXPECT_EQ(slam.keyframe_trajectory().size(), slam.num_keyframes());
+  const auto pts = slam.map_points();
+  EXPECT_GT(pts.rows(), 100);
+  EXPECT_TRUE(pts.allFinite());
+  const auto ply = std::filesystem::temp_directory_path() / "ds3d_slam_test_map.ply";
+  slam.write_map_ply(ply);
+  EXPECT_GT(std::filesystem::file_size(ply), 100U);
+  std::filesystem::remove(ply);
+  EXPECT_THROW(slam.write_map_ply("/nonexistent_dir/x.ply"), ds3d::IoError);
+}
+
+}  // namespace
