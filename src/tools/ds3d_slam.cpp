@@ -12,6 +12,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -27,6 +30,7 @@
 #pragma GCC diagnostic ignored "-Wrestrict"
 #include "ds3d/dataset.hpp"
 #include "ds3d/detail/json.hpp"
+#include "ds3d/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
 #include "ds3d/slam_frontend.hpp"
 #include "ds3d/trajectory.hpp"
@@ -36,12 +40,15 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
-    "                 [--dynamic none] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
+    "                 [--dynamic none|geometric|file:PATH] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
     "                 [--cv-threads N] [--quiet]\n"
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
     "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present.\n"
-    "--dynamic: only 'none' is available until the dynamic filter lands.\n"
+    "--dynamic: where boxes of moving objects come from: none (keep every keypoint), geometric\n"
+    "  (multi-view motion, no learned weights) or file:PATH (JSON lines, see detections.hpp);\n"
+    "  keypoints in the boxes go through the box-gated HDBSCAN filter (dynamic_filter.hpp).\n"
+    "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes (blue).\n"
     "--cv-threads: OpenCV's own worker threads (default 1: the pipeline stages are the threads).\n";
 
 struct Args {
@@ -120,11 +127,13 @@ Args parse(int argc, char** argv) {
   }
   if (pos.size() != 1) usage_error("expected exactly one DATASET_DIR");
   a.dataset = pos[0];
-  if (a.dynamic != "none") {
-    const bool known = a.dynamic == "geometric" || a.dynamic == "htx" || a.dynamic.rfind("file:", 0) == 0;
+  const bool known = a.dynamic == "none" || a.dynamic == "geometric" ||
+                     (a.dynamic.rfind("file:", 0) == 0 && a.dynamic.size() > 5);
+  if (!known) {
     std::ostringstream msg;
-    msg << "--dynamic '" << a.dynamic << "' is " << (known ? "not implemented yet" : "unknown")
-        << " (available: none; geometric, htx and file:PATH come with the dynamic filter)";
+    msg << "--dynamic '" << a.dynamic << "' is "
+        << (a.dynamic == "htx" ? "not wired yet" : "unknown")
+        << " (available: none, geometric, file:PATH)";
     usage_error(msg.str());
   }
   return a;
@@ -146,9 +155,48 @@ Percentiles percentiles(std::vector<double> v) {
   return {at(0.5), at(0.95)};
 }
 
+// The HDBSCAN masker, remembering each frame's boxes for --viz (the masker runs in the filter
+// stage's thread, the drawing on the caller's).
+class RecordingMasker final : public ds3d::slam::DynamicFeatureMasker {
+ public:
+  std::vector<std::uint8_t> mask(const ds3d::slam::FrameInput& frame,
+                                 const ds3d::PinholeCamera& camera,
+                                 const ds3d::slam::OrbFeatures& features,
+                                 const ds3d::slam::DynamicObjects& objects) override {
+    auto m = inner_.mask(frame, camera, features, objects);
+    if (record_) {
+      std::vector<ds3d::ImageBox> boxes;
+      for (const auto& b : inner_.last_result().boxes) boxes.push_back(b.box);
+      const std::lock_guard<std::mutex> lock(mutex_);
+      boxes_[frame.index] = std::move(boxes);
+    }
+    return m;
+  }
+  [[nodiscard]] std::string name() const override { return inner_.name(); }
+  void set_record(bool on) { record_ = on; }
+  std::vector<ds3d::ImageBox> take(std::size_t index) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = boxes_.find(index);
+    if (it == boxes_.end()) return {};
+    auto out = std::move(it->second);
+    boxes_.erase(it);
+    return out;
+  }
+
+ private:
+  ds3d::slam::HdbscanMasker inner_;
+  bool record_ = false;
+  std::mutex mutex_;
+  std::map<std::size_t, std::vector<ds3d::ImageBox>> boxes_;
+};
+
 void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
-              const ds3d::slam::TrackResult& r) {
+              const ds3d::slam::TrackResult& r, const std::vector<ds3d::ImageBox>& boxes) {
   cv::Mat img = ds.frame(r.index).rgb.clone();
+  for (const auto& b : boxes) {
+    cv::rectangle(img, cv::Point2f(b.x_min, b.y_min), cv::Point2f(b.x_max, b.y_max),
+                  cv::Scalar(255, 128, 0), 2, cv::LINE_AA);
+  }
   for (std::size_t i = 0; i < r.keypoints.size(); ++i) {
     cv::Scalar c(128, 128, 128);
     if (r.keypoint_status[i] == ds3d::slam::KeypointStatus::kTracked) c = cv::Scalar(0, 200, 0);
@@ -183,7 +231,14 @@ int run(const Args& a) {
   cfg.camera = ds.camera();
   cfg.enable_local_ba = a.local_ba;
   cfg.mapping_thread = a.threads;
-  ds3d::slam::SlamFrontend slam(cfg);
+  std::shared_ptr<ds3d::slam::DynamicObjectSource> source =
+      ds3d::slam::make_dynamic_source(a.dynamic);
+  std::shared_ptr<RecordingMasker> masker;
+  if (a.dynamic != "none") {
+    masker = std::make_shared<RecordingMasker>();
+    masker->set_record(!a.viz.empty());
+  }
+  ds3d::slam::SlamFrontend slam(cfg, source, masker);
   if (!a.viz.empty()) std::filesystem::create_directories(a.viz);
 
   const std::size_t total = a.max_frames == 0 ? ds.size() : std::min(a.max_frames, ds.size());
@@ -197,7 +252,9 @@ int run(const Args& a) {
     frame_ms.push_back(std::chrono::duration<double, std::milli>(now - last).count());
     last = now;
     ++done;
-    if (!a.viz.empty()) draw_viz(a.viz, ds, r);
+    if (!a.viz.empty()) {
+      draw_viz(a.viz, ds, r, masker ? masker->take(r.index) : std::vector<ds3d::ImageBox>{});
+    }
     if (tty && (done % 5 == 0 || done == total)) {
       const double sec = std::chrono::duration<double>(now - t_start).count();
       const int width = 30;
