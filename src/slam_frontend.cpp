@@ -662,14 +662,26 @@ struct SlamFrontend::Impl {
       K.data.points[i] = pid;
       recent_points.push_back(pid);
     }
-    // Covisibility edges (ORB-SLAM2: weight = shared points, kept when >= 15, or the best one).
+    update_connections(K);
+    if (cfg.fuse_neighbors) search_in_neighbors(K.id);
+    cull_recent_points(K.id);
+    last_kf_frame = static_cast<int>(frame_counter);
+    ref_kf = K.id;
+    return K.id;
+  }
+
+  // Covisibility edges of keyframe K from its current points (ORB-SLAM2's UpdateConnections:
+  // weight = shared points, kept when >= 15, or the best one). Stale edges of K are replaced.
+  void update_connections(Keyframe& K) {
     std::map<int, int> shared;
     for (const int pid : K.data.points) {
-      if (pid < 0) continue;
+      if (pid < 0 || points[static_cast<std::size_t>(pid)].bad) continue;
       for (const auto& [other, idx] : points[static_cast<std::size_t>(pid)].obs) {
         if (other != K.id) ++shared[other];
       }
     }
+    for (const auto& [other, w] : K.covis) keyframes[static_cast<std::size_t>(other)].covis.erase(K.id);
+    K.covis.clear();
     int best = -1;
     int best_w = 0;
     for (const auto& [other, w] : shared) {
@@ -686,10 +698,135 @@ struct SlamFrontend::Impl {
       K.covis[best] = best_w;
       keyframes[static_cast<std::size_t>(best)].covis[K.id] = best_w;
     }
-    cull_recent_points(K.id);
-    last_kf_frame = static_cast<int>(frame_counter);
-    ref_kf = K.id;
-    return K.id;
+  }
+
+  // Best covisible keyframes of `kf_id`, most-sharing first (ties: lower id).
+  [[nodiscard]] std::vector<int> best_covisible(int kf_id, int n) const {
+    const auto& cov = keyframes[static_cast<std::size_t>(kf_id)].covis;
+    std::vector<std::pair<int, int>> nb(cov.begin(), cov.end());
+    std::stable_sort(nb.begin(), nb.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+    std::vector<int> out;
+    for (const auto& [id, w] : nb) {
+      if (static_cast<int>(out.size()) >= n) break;
+      out.push_back(id);
+    }
+    return out;
+  }
+
+  // Merges map point `from` into `into` (ORB-SLAM2's MapPoint::Replace): every keyframe that saw
+  // `from` now sees `into` (or nothing, when it already sees `into` at another keypoint).
+  void replace_point(int from, int into) {
+    if (from == into) return;
+    MapPoint& a = points[static_cast<std::size_t>(from)];
+    MapPoint& b = points[static_cast<std::size_t>(into)];
+    for (const auto& [kf, idx] : a.obs) {
+      auto& slot = keyframes[static_cast<std::size_t>(kf)].data.points[static_cast<std::size_t>(idx)];
+      const bool seen = std::any_of(b.obs.begin(), b.obs.end(), [&](const auto& o) { return o.first == kf; });
+      if (seen) {
+        slot = -1;
+      } else {
+        slot = into;
+        b.obs.emplace_back(kf, idx);
+      }
+    }
+    b.visible += a.visible;
+    b.found += a.found;
+    a.obs.clear();
+    a.bad = true;
+    update_point_descriptor(b);
+    update_point_geometry(b);
+  }
+
+  // Projects `cands` into keyframe `kf_id` and merges each with the keypoint it matches
+  // (ORB-SLAM2's ORBmatcher::Fuse, radius 3 × scale, χ² test of the stereo or mono residual,
+  // Hamming <= TH_LOW): an unmatched keypoint gains the observation; a keypoint that already has
+  // a map point keeps whichever of the two is observed more. Returns the number of fusions.
+  int fuse_into(int kf_id, std::vector<int> cands) {  // by value: fusion edits the source lists
+    Keyframe& K = keyframes[static_cast<std::size_t>(kf_id)];
+    FrameData& f = K.data;
+    const Eigen::Vector3d Ow = K.center();
+    int fused = 0;
+    for (const int pid : cands) {
+      if (pid < 0) continue;
+      MapPoint& p = points[static_cast<std::size_t>(pid)];
+      if (p.bad || std::any_of(p.obs.begin(), p.obs.end(), [&](const auto& o) { return o.first == kf_id; })) continue;
+      const Eigen::Vector3d pc = K.T_cw * p.pos;
+      if (pc.z() <= 1e-3) continue;
+      const double u = k.fx * pc.x() / pc.z() + k.cx;
+      const double v = k.fy * pc.y() / pc.z() + k.cy;
+      if (!cfg.camera.in_image(u, v)) continue;
+      const double ur = u - k.bf / pc.z();
+      const Eigen::Vector3d po = p.pos - Ow;
+      const double dist = po.norm();
+      if (dist < 0.8 * p.min_dist || dist > 1.2 * p.max_dist) continue;
+      if (po.dot(p.normal) < 0.5 * dist) continue;
+      const int level = predict_level(p, dist);
+      const double radius = 3.0 * scale[static_cast<std::size_t>(level)];
+      int best = 256;
+      int best_idx = -1;
+      f.grid.for_each_in(u, v, radius, [&](int i) {
+        const auto si = static_cast<std::size_t>(i);
+        const int lv = f.octave[si];
+        if (lv < level - 1 || lv > level) return;
+        const double eu = u - f.uv[si].x();
+        const double ev = v - f.uv[si].y();
+        const double w = inv_sigma2[static_cast<std::size_t>(lv)];
+        if (f.depth[si] > 0) {
+          const double er = ur - f.u_right(si, k.bf);
+          if ((eu * eu + ev * ev + er * er) * w > cfg.local_ba.chi2_stereo) return;
+        } else if ((eu * eu + ev * ev) * w > cfg.local_ba.chi2_mono) {
+          return;
+        }
+        const int d = descriptor_distance(p.desc.data(), f.desc.ptr<std::uint8_t>(i));
+        if (d < best) {
+          best = d;
+          best_idx = i;
+        }
+      });
+      if (best_idx < 0 || best > kThLow) continue;
+      const int other = f.points[static_cast<std::size_t>(best_idx)];
+      if (other >= 0 && !points[static_cast<std::size_t>(other)].bad) {
+        if (other == pid) continue;
+        if (points[static_cast<std::size_t>(other)].obs.size() > p.obs.size()) {
+          replace_point(pid, other);
+        } else {
+          replace_point(other, pid);
+        }
+      } else {
+        f.points[static_cast<std::size_t>(best_idx)] = pid;
+        p.obs.emplace_back(kf_id, best_idx);
+        update_point_descriptor(p);
+        update_point_geometry(p);
+      }
+      ++fused;
+    }
+    return fused;
+  }
+
+  // ORB-SLAM2's SearchInNeighbors: fuses the new keyframe's points into its covisible neighbours
+  // (10 best + 5 best of each) and their points into it, then refreshes its connections.
+  void search_in_neighbors(int kf_id) {
+    std::vector<int> targets;
+    std::set<int> seen{kf_id};
+    for (const int id : best_covisible(kf_id, 10)) {
+      if (seen.insert(id).second) targets.push_back(id);
+    }
+    const std::size_t first = targets.size();
+    for (std::size_t i = 0; i < first; ++i) {
+      for (const int id : best_covisible(targets[i], 5)) {
+        if (seen.insert(id).second) targets.push_back(id);
+      }
+    }
+    for (const int id : targets) fuse_into(id, keyframes[static_cast<std::size_t>(kf_id)].data.points);
+    std::vector<int> cands;
+    std::set<int> cand_set;
+    for (const int id : targets) {
+      for (const int pid : keyframes[static_cast<std::size_t>(id)].data.points) {
+        if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad && cand_set.insert(pid).second) cands.push_back(pid);
+      }
+    }
+    fuse_into(kf_id, cands);
+    update_connections(keyframes[static_cast<std::size_t>(kf_id)]);
   }
 
   // ORB-SLAM2's MapPointCulling: recent points must be found in >= 25 % of the frames that
@@ -719,6 +856,9 @@ struct SlamFrontend::Impl {
 
   void schedule_local_ba(int kf_id) {
     if (!cfg.enable_local_ba) return;
+    // A keyframe inserted before the previous BA was due (gap or weak-tracking criterion) must not
+    // discard that BA: apply it now (waits for the mapping thread; still deterministic).
+    apply_ba_if_due(true);
     const Keyframe& K = keyframes[static_cast<std::size_t>(kf_id)];
     std::vector<std::pair<int, int>> nb(K.covis.begin(), K.covis.end());
     std::stable_sort(nb.begin(), nb.end(), [](const auto& a, const auto& b) { return a.second > b.second; });

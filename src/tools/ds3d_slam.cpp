@@ -42,13 +42,17 @@ constexpr const char* kUsage =
     "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
     "                 [--dynamic none|geometric|file:PATH] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
-    "                 [--cv-threads N] [--quiet]\n"
+    "                 [--fusion] [--local-window N] [--bf BF] [--cv-threads N] [--quiet]\n"
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
     "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present.\n"
     "--dynamic: where boxes of moving objects come from: none (keep every keypoint), geometric\n"
     "  (multi-view motion, no learned weights) or file:PATH (JSON lines, see detections.hpp);\n"
     "  keypoints in the boxes go through the box-gated HDBSCAN filter (dynamic_filter.hpp).\n"
     "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes (blue).\n"
+    "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
+    "  default: it hurts on dynamic scenes without a dynamic filter, see docs/slam.md).\n"
+    "--local-window: keyframes optimised by local BA (default 10).\n"
+    "--bf: virtual stereo baseline × fx for the depth residual [px·m] (default 40, ORB-SLAM2's).\n"
     "--cv-threads: OpenCV's own worker threads (default 1: the pipeline stages are the threads).\n";
 
 struct Args {
@@ -63,6 +67,9 @@ struct Args {
   std::filesystem::path map;
   bool threads = true;
   bool local_ba = true;
+  bool fusion = false;
+  int local_window = 0;  // 0 = the FrontendConfig default
+  double bf = 0;         // 0 = the FrontendConfig default
   int cv_threads = 1;
   bool quiet = false;
 };
@@ -115,6 +122,12 @@ Args parse(int argc, char** argv) {
       a.threads = false;
     } else if (s == "--no-local-ba") {
       a.local_ba = false;
+    } else if (s == "--fusion") {
+      a.fusion = true;
+    } else if (s == "--bf") {
+      a.bf = std::stod(value());
+    } else if (s == "--local-window") {
+      a.local_window = static_cast<int>(parse_int(s, value(), 2));
     } else if (s == "--cv-threads") {
       a.cv_threads = static_cast<int>(parse_int(s, value(), 0));
     } else if (s == "--quiet") {
@@ -230,6 +243,9 @@ int run(const Args& a) {
   ds3d::slam::FrontendConfig cfg;
   cfg.camera = ds.camera();
   cfg.enable_local_ba = a.local_ba;
+  cfg.fuse_neighbors = a.fusion;
+  if (a.local_window > 0) cfg.local_window = a.local_window;
+  if (a.bf > 0) cfg.bf = a.bf;
   cfg.mapping_thread = a.threads;
   std::shared_ptr<ds3d::slam::DynamicObjectSource> source =
       ds3d::slam::make_dynamic_source(a.dynamic);

@@ -90,6 +90,22 @@ TEST(SlamFrontend, SittingStaticIsAccurate) {
   EXPECT_LE(r.ate, 0.005);
 }
 
+// Map-point fusion (ORB-SLAM2's SearchInNeighbors + Fuse) keeps the static accuracy and the
+// thread-independence of the output.
+TEST(SlamFrontend, FusionKeepsAccuracyAndDeterminism) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 30, 3);
+  FrontendConfig cfg = synth_config();
+  cfg.fuse_neighbors = true;
+  const SlamRun a = run(frames, cfg, true);
+  cfg.mapping_thread = false;
+  const SlamRun b = run(frames, cfg, false);
+  EXPECT_LE(a.ate, 0.005);
+  ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
+  for (std::size_t i = 0; i < a.trajectory.size(); ++i) {
+    EXPECT_TRUE(a.trajectory[i].T_world_cam.matrix() == b.trajectory[i].T_world_cam.matrix()) << "frame " << i;
+  }
+}
+
 TEST(SlamFrontend, ThreadedPipelineGivesIdenticalPoses) {
   const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 30, 3);
   const SlamRun a = run(frames, synth_config(), true);
