@@ -18,49 +18,41 @@ namespace ds3d {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+/// Intrinsics of the named presets (640 x 480, depth_scale 5000): the TUM RGB-D benchmark's
+/// calibrations (fr1, fr2, fr3 = already undistorted) and the Bonn RGB-D Dynamic dataset's.
+struct CameraPreset {
+  std::string_view name;
+  double fx, fy, cx, cy, k1, k2, p1, p2, k3;
+};
+
+constexpr std::array<CameraPreset, 4> kCameraPresets{{
+    {"tum1", 517.306408, 516.469215, 318.643040, 255.313989, 0.262383, -0.953104, -0.005358,
+     0.002628, 1.163314},
+    {"tum2", 520.908620, 521.007327, 325.141442, 249.701764, 0.231222, -0.784899, -0.003257,
+     -0.000105, 0.917205},
+    {"tum3", 535.4, 539.2, 320.1, 247.6, 0.0, 0.0, 0.0, 0.0, 0.0},
+    {"bonn", 542.822841, 542.576870, 315.593520, 237.756098, 0.039903, -0.099343, -0.000730,
+     -0.000144, 0.0},
+}};
+
+}  // namespace
+
 PinholeCamera camera_preset(std::string_view name) {
   PinholeCamera c;  // 640 x 480, depth_scale 5000, ROS default intrinsics
   if (name == "tum_ros") return c;
-  if (name == "tum1") {
-    c.fx = 517.306408;
-    c.fy = 516.469215;
-    c.cx = 318.643040;
-    c.cy = 255.313989;
-    c.k1 = 0.262383;
-    c.k2 = -0.953104;
-    c.p1 = -0.005358;
-    c.p2 = 0.002628;
-    c.k3 = 1.163314;
-    return c;
-  }
-  if (name == "tum2") {
-    c.fx = 520.908620;
-    c.fy = 521.007327;
-    c.cx = 325.141442;
-    c.cy = 249.701764;
-    c.k1 = 0.231222;
-    c.k2 = -0.784899;
-    c.p1 = -0.003257;
-    c.p2 = -0.000105;
-    c.k3 = 0.917205;
-    return c;
-  }
-  if (name == "tum3") {
-    c.fx = 535.4;
-    c.fy = 539.2;
-    c.cx = 320.1;
-    c.cy = 247.6;
-    return c;
-  }
-  if (name == "bonn") {
-    c.fx = 542.822841;
-    c.fy = 542.576870;
-    c.cx = 315.593520;
-    c.cy = 237.756098;
-    c.k1 = 0.039903;
-    c.k2 = -0.099343;
-    c.p1 = -0.000730;
-    c.p2 = -0.000144;
+  for (const CameraPreset& p : kCameraPresets) {
+    if (p.name != name) continue;
+    c.fx = p.fx;
+    c.fy = p.fy;
+    c.cx = p.cx;
+    c.cy = p.cy;
+    c.k1 = p.k1;
+    c.k2 = p.k2;
+    c.p1 = p.p1;
+    c.p2 = p.p2;
+    c.k3 = p.k3;
     return c;
   }
   throw InvalidArgument(detail::concat("ds3d::camera_preset: unknown name '", name,

@@ -10,6 +10,7 @@
 #include <exception>
 #include <iostream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ds3d/detail/json.hpp"
@@ -47,6 +48,14 @@ std::string stats_json(const ds3d::ErrorStats& s, const char* unit) {
 
 void print_line(const char* name, double v, const char* unit) {
   std::printf("%s %f %s\n", name, v, unit);
+}
+
+/// The six lines `<prefix>.rmse` ... `<prefix>.max` as the TUM scripts print them (--verbose).
+void print_stats(const std::string& prefix, const ds3d::ErrorStats& s, const char* unit) {
+  const std::pair<const char*, double> rows[] = {{"rmse", s.rmse},     {"mean", s.mean},
+                                                 {"median", s.median}, {"std", s.std},
+                                                 {"min", s.min},       {"max", s.max}};
+  for (const auto& [name, value] : rows) print_line((prefix + "." + name).c_str(), value, unit);
 }
 
 }  // namespace
@@ -109,12 +118,11 @@ int main(int argc, char** argv) {
         ds3d::write_ate_plot(plot, gt, r, {.title = "ATE  " + est_path + "  vs  " + gt_path});
       }
       if (json) {
+        const std::string stats =
+            stats_json(ds3d::ErrorStats{r.rmse, r.mean, r.median, r.std, r.min, r.max}, "m");
+        // The statistics' members inline (without the closing brace), as before.
         std::string out = "{\"compared_pose_pairs\":" + std::to_string(r.compared_pose_pairs) +
-                          ",\"unit\":\"m\",\"rmse\":" + json_number(r.rmse) +
-                          ",\"mean\":" + json_number(r.mean) +
-                          ",\"median\":" + json_number(r.median) +
-                          ",\"std\":" + json_number(r.std) + ",\"min\":" + json_number(r.min) +
-                          ",\"max\":" + json_number(r.max) + ",\"alignment\":{\"rotation\":[";
+                          "," + stats.substr(1, stats.size() - 2) + ",\"alignment\":{\"rotation\":[";
         for (int k = 0; k < 3; ++k) {
           out += (k ? ",[" : "[");
           for (int j = 0; j < 3; ++j) out += (j ? "," : "") + json_number(r.rotation(k, j));
@@ -127,12 +135,8 @@ int main(int argc, char** argv) {
         std::cout << out << "\n";
       } else {
         std::printf("compared_pose_pairs %zu pairs\n", r.compared_pose_pairs);
-        print_line("absolute_translational_error.rmse", r.rmse, "m");
-        print_line("absolute_translational_error.mean", r.mean, "m");
-        print_line("absolute_translational_error.median", r.median, "m");
-        print_line("absolute_translational_error.std", r.std, "m");
-        print_line("absolute_translational_error.min", r.min, "m");
-        print_line("absolute_translational_error.max", r.max, "m");
+        print_stats("absolute_translational_error",
+                    ds3d::ErrorStats{r.rmse, r.mean, r.median, r.std, r.min, r.max}, "m");
         if (ate.alignment == ds3d::Alignment::kSim3)
           print_line("alignment.scale", r.scale_factor, "");
       }
@@ -149,20 +153,8 @@ int main(int argc, char** argv) {
       } else {
         // evaluate_rpe.py --verbose, except that the median is really in degrees here.
         std::printf("compared_pose_pairs %zu pairs\n", r.compared_pose_pairs);
-        const auto& t = r.translational;
-        const auto& d = r.rotational;
-        print_line("translational_error.rmse", t.rmse, "m");
-        print_line("translational_error.mean", t.mean, "m");
-        print_line("translational_error.median", t.median, "m");
-        print_line("translational_error.std", t.std, "m");
-        print_line("translational_error.min", t.min, "m");
-        print_line("translational_error.max", t.max, "m");
-        print_line("rotational_error.rmse", d.rmse, "deg");
-        print_line("rotational_error.mean", d.mean, "deg");
-        print_line("rotational_error.median", d.median, "deg");
-        print_line("rotational_error.std", d.std, "deg");
-        print_line("rotational_error.min", d.min, "deg");
-        print_line("rotational_error.max", d.max, "deg");
+        print_stats("translational_error", r.translational, "m");
+        print_stats("rotational_error", r.rotational, "deg");
       }
     }
     return 0;
