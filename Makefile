@@ -4,7 +4,9 @@
 # (scripts/install-deps.sh) and is idempotent.
 #   make demo        Release build in build/ and run the demo on generated data
 #   make test        build + ctest + pytest + out-of-tree consumer against an installed copy
-#                    + offline pip install into a throw-away venv
+#                    + offline pip install into a throw-away venv + examples
+#   make test-examples  cluster_bench/sweep.py --quick (the C++ examples run in ctest and
+#                    test-consumer)
 #   make test-asan   Debug + AddressSanitizer + UBSan build in build-asan/ and its ctest
 #   make bench       every Google Benchmark binary -> bench/results/<name>.json + summary.md
 #   make format / format-check / tidy
@@ -19,7 +21,7 @@ ifeq ($(CI),true)
 endif
 
 .PHONY: all deps configure build demo test test-cpp test-python test-consumer test-pip test-asan bench \
-        format format-check tidy clean
+        format format-check tidy clean test-examples
 
 all: build
 
@@ -38,7 +40,7 @@ build: configure
 demo: build
 	$(BUILD_DIR)/bin/ds3d-demo --out $(BUILD_DIR)/demo_out
 
-test: build test-cpp test-python test-consumer test-pip
+test: build test-cpp test-python test-consumer test-pip test-examples
 	@echo "make test: all suites passed"
 
 test-cpp: build
@@ -52,6 +54,10 @@ test-consumer: build
 
 test-pip: deps
 	PYTHON=$(PYTHON) JOBS=$(JOBS) scripts/test-pip-install.sh
+
+test-examples: build
+	PYTHONPATH=$(CURDIR)/$(BUILD_DIR)/python $(PYTHON) examples/cluster_bench/sweep.py --quick \
+	  --out $(BUILD_DIR)/cluster_bench
 
 test-asan: deps
 	cmake -S . -B $(ASAN_DIR) -G $(GENERATOR) -DCMAKE_BUILD_TYPE=Debug -DDS3D_SANITIZE=ON \
