@@ -90,8 +90,12 @@ void BM_HdbscanKeypoints(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * state.range(0));
   state.counters["clusters"] = clusters;
 }
-BENCHMARK(BM_HdbscanKeypoints)->Arg(100)->Arg(400)->Arg(1600)->ArgName("n")->Unit(
-    benchmark::kMicrosecond);
+BENCHMARK(BM_HdbscanKeypoints)
+    ->Arg(100)
+    ->Arg(400)
+    ->Arg(1600)
+    ->ArgName("n")
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

@@ -28,13 +28,15 @@
 // The host SLAM system's own types (they know nothing about ds3d).
 namespace toyslam {
 
-struct KeyPoint {  // like cv::KeyPoint + ORB-SLAM2's mvDepth, but the host's own
+// Like cv::KeyPoint plus ORB-SLAM2's mvDepth, but the host's own.
+struct KeyPoint {
   float x = 0, y = 0;  // pixel column, row
   int octave = 0;      // pyramid level
   float depth = -1;    // [m], <= 0 when the depth image has a hole there
 };
 
-struct PersonBox {  // what the host's 2-D detector returns
+// What the host's 2-D detector returns.
+struct PersonBox {
   int left = 0, top = 0, right = 0, bottom = 0;  // [px], inclusive
   float confidence = 0;
 };
@@ -83,7 +85,7 @@ double person_depth(double px, double py, double x, double z) {
   };
   const double dx = px - x;
   const Piece pieces[] = {
-      {-0.20, 0.20, -0.33, 0.35},  // torso
+      {-0.20, 0.20, -0.33, 0.35},   // torso
       {-0.30, -0.21, -0.30, 0.25},  // arms
       {0.21, 0.30, -0.30, 0.25},    //
       {-0.17, -0.03, 0.35, 1.20},   // legs
@@ -111,9 +113,9 @@ Frame make_frame(const Intrinsics& K, double person_x, double person_z, std::uin
   int left = K.width, top = K.height, right = -1, bottom = -1;
   for (int v = 0; v < K.height; ++v) {
     for (int u = 0; u < K.width; ++u) {
-      const double rx = (u - K.cx) / K.fx, ry = (v - K.cy) / K.fy;  // ray (rx, ry, 1)
-      double z = 4.0;                                               // back wall
-      if (ry > 1e-6) z = std::min(z, 1.2 / ry);                     // floor y = 1.2
+      const double rx = (u - K.cx) / K.fx, ry = (v - K.cy) / K.fy;   // ray (rx, ry, 1)
+      double z = 4.0;                                                // back wall
+      if (ry > 1e-6) z = std::min(z, 1.2 / ry);                      // floor y = 1.2
       if (std::abs(rx) > 1e-6) z = std::min(z, 2.0 / std::abs(rx));  // side walls x = ±2
       const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(K.width) +
                             static_cast<std::size_t>(u);
@@ -126,7 +128,8 @@ Frame make_frame(const Intrinsics& K, double person_x, double person_z, std::uin
       }
       z += 1.425e-3 * z * z * rng.normal();  // sensor noise (Khoshelham & Elberink 2012)
       if (rng.uniform() < 0.02) z = 0.0;     // holes
-      f.depth[i] = static_cast<std::uint16_t>(std::lround(std::clamp(z, 0.0, 6.0) * K.depth_factor));
+      f.depth[i] =
+          static_cast<std::uint16_t>(std::lround(std::clamp(z, 0.0, 6.0) * K.depth_factor));
     }
   }
   for (int v = 8; v < K.height - 8; v += 4) {
@@ -139,15 +142,16 @@ Frame make_frame(const Intrinsics& K, double person_x, double person_z, std::uin
       kp.x = static_cast<float>(u + 4.0 * rng.uniform() - 2.0);
       kp.y = static_cast<float>(v + 4.0 * rng.uniform() - 2.0);
       kp.octave = static_cast<int>(rng.next() % 4U);
-      const std::size_t j = static_cast<std::size_t>(std::lround(kp.y)) *
-                                static_cast<std::size_t>(K.width) +
-                            static_cast<std::size_t>(std::lround(kp.x));
+      const std::size_t j =
+          static_cast<std::size_t>(std::lround(kp.y)) * static_cast<std::size_t>(K.width) +
+          static_cast<std::size_t>(std::lround(kp.x));
       kp.depth = f.depth[j] > 0 ? static_cast<float>(f.depth[j] / K.depth_factor) : -1.0F;
       f.keypoints.push_back(kp);
       f.on_person.push_back(person[j] != 0);
     }
   }
-  if (detector_fires && right >= 0) f.persons.push_back({left - 6, top - 6, right + 6, bottom + 6, 0.9F});
+  if (detector_fires && right >= 0)
+    f.persons.push_back({left - 6, top - 6, right + 6, bottom + 6, 0.9F});
   return f;
 }
 
@@ -156,8 +160,9 @@ PointMap back_project(const Frame& f, const Intrinsics& K, int step) {
   PointMap cloud;
   for (int v = 0; v < K.height; v += step) {
     for (int u = 0; u < K.width; u += step) {
-      const std::uint16_t d = f.depth[static_cast<std::size_t>(v) * static_cast<std::size_t>(K.width) +
-                                      static_cast<std::size_t>(u)];
+      const std::uint16_t d =
+          f.depth[static_cast<std::size_t>(v) * static_cast<std::size_t>(K.width) +
+                  static_cast<std::size_t>(u)];
       if (d == 0) continue;
       const double z = d / K.depth_factor;
       cloud.push_back({{(u - K.cx) * z / K.fx, (v - K.cy) * z / K.fy, z}, 0});
@@ -224,8 +229,8 @@ int main() {
   std::printf("frame  keypoints  in-box  on-person  removed-on-person  removed-elsewhere  boxes\n");
   for (int t = 0; t < 3; ++t) {
     // The person walks 5 cm to the right per frame; the detector misses them on frame 2.
-    const toyslam::Frame f = toyslam::make_frame(K, -0.25 + 0.05 * t, 2.0,
-                                                 1000 + static_cast<std::uint64_t>(t), t < 2);
+    const toyslam::Frame f =
+        toyslam::make_frame(K, -0.25 + 0.05 * t, 2.0, 1000 + static_cast<std::uint64_t>(t), t < 2);
     // Tracking step of the host, right after feature extraction and before matching:
     const ds3d::DynamicFilterResult r =
         filter.filter(glue::keypoints(f.keypoints), glue::boxes(f.persons), cam);
@@ -239,16 +244,20 @@ int main() {
     }
     int in_box = 0;
     for (const ds3d::BoxOutcome& b : r.boxes) in_box += b.num_keypoints;
-    const double recall = person > 0 ? static_cast<double>(person_removed) / static_cast<double>(person) : 1.0;
-    const double false_rate = other > 0 ? static_cast<double>(other_removed) / static_cast<double>(other) : 0.0;
+    const double recall =
+        person > 0 ? static_cast<double>(person_removed) / static_cast<double>(person) : 1.0;
+    const double false_rate =
+        other > 0 ? static_cast<double>(other_removed) / static_cast<double>(other) : 0.0;
     std::printf("%5d  %9zu  %6d  %9zu  %10zu (%3.0f%%)  %10zu (%4.1f%%)  %zu detected%s\n", t,
                 f.keypoints.size(), in_box, person, person_removed, 100.0 * recall, other_removed,
                 100.0 * false_rate, f.persons.size(),
                 r.boxes.size() > f.persons.size() ? " + carried" : "");
-    if (recall < 0.9 || false_rate > 0.1 || kept.size() + static_cast<std::size_t>(r.num_dynamic) !=
-                                                 f.keypoints.size()) {
-      std::printf("  FAILED on frame %d: removed %.0f%% of the person's keypoints (want >= 90%%), "
-                  "%.1f%% of the others (want <= 10%%)\n", t, 100.0 * recall, 100.0 * false_rate);
+    if (recall < 0.9 || false_rate > 0.1 ||
+        kept.size() + static_cast<std::size_t>(r.num_dynamic) != f.keypoints.size()) {
+      std::printf(
+          "  FAILED on frame %d: removed %.0f%% of the person's keypoints (want >= 90%%), "
+          "%.1f%% of the others (want <= 10%%)\n",
+          t, 100.0 * recall, 100.0 * false_rate);
       ok = false;
     }
 
@@ -258,19 +267,20 @@ int main() {
       const toyslam::PointMap cloud = toyslam::back_project(f, K, 2);
       const ds3d::PreprocessResult p = ds3d::preprocess_cloud(cloud);
       // The same chain straight from the host's 16-bit depth buffer (no copy of the image).
-      const ds3d::PreprocessResult q = ds3d::preprocess(f.depth.data(), K.width, K.height,
-                                                        K.width, cam);
-      std::printf("preprocess(PointMap via traits): %zu points -> %zu voxels -> %zu after floor "
-                  "(%zu) and outliers (%zu); floor normal (%.2f, %.2f, %.2f), d = %.2f m\n",
-                  p.num_input, p.num_voxels, static_cast<std::size_t>(p.points.rows()),
-                  p.num_ground, p.num_outliers, p.ground_plane[0], p.ground_plane[1],
-                  p.ground_plane[2], p.ground_plane[3]);
+      const ds3d::PreprocessResult q =
+          ds3d::preprocess(f.depth.data(), K.width, K.height, K.width, cam);
+      std::printf(
+          "preprocess(PointMap via traits): %zu points -> %zu voxels -> %zu after floor "
+          "(%zu) and outliers (%zu); floor normal (%.2f, %.2f, %.2f), d = %.2f m\n",
+          p.num_input, p.num_voxels, static_cast<std::size_t>(p.points.rows()), p.num_ground,
+          p.num_outliers, p.ground_plane[0], p.ground_plane[1], p.ground_plane[2],
+          p.ground_plane[3]);
       std::printf("preprocess(uint16 depth buffer): %zu points -> %zu voxels -> %zu kept\n",
                   q.num_input, q.num_voxels, static_cast<std::size_t>(q.points.rows()));
       // Camera 1.2 m above the floor, y down: the floor is 0·x - 1·y + 0·z + 1.2 = 0.
       const bool floor_ok = p.ground_found && q.ground_found && p.ground_plane[1] < -0.95 &&
-                            std::abs(p.ground_plane[3] - 1.2) < 0.05 &&
-                            p.points.allFinite() && p.points.rows() > 0;
+                            std::abs(p.ground_plane[3] - 1.2) < 0.05 && p.points.allFinite() &&
+                            p.points.rows() > 0;
       if (!floor_ok) {
         std::printf("  FAILED: the floor plane was not found where it is (y = 1.2 m)\n");
         ok = false;
