@@ -4,7 +4,10 @@
 # (scripts/install-deps.sh) and is idempotent.
 #   make demo        Release build in build/ and run the demo on generated data
 #   make test        build + ctest + pytest + out-of-tree consumer against an installed copy
-#                    + offline pip install into a throw-away venv
+#                    + offline pip install into a throw-away venv + examples + notebook + docs
+#   make docs        API reference (doxygen) -> build/docs/html; fails on any doxygen warning
+#   make test-examples  cluster_bench/sweep.py --quick (the C++ examples run in ctest and
+#                    test-consumer); make test-notebook: executes examples/notebooks headless
 #   make test-asan   Debug + AddressSanitizer + UBSan build in build-asan/ and its ctest
 #   make bench       every Google Benchmark binary -> bench/results/<name>.json + summary.md
 #   make format / format-check / tidy
@@ -19,7 +22,7 @@ ifeq ($(CI),true)
 endif
 
 .PHONY: all deps configure build demo test test-cpp test-python test-consumer test-pip test-asan bench \
-        format format-check tidy clean
+        format format-check tidy clean docs test-examples test-notebook
 
 all: build
 
@@ -38,7 +41,7 @@ build: configure
 demo: build
 	$(BUILD_DIR)/bin/ds3d-demo --out $(BUILD_DIR)/demo_out
 
-test: build test-cpp test-python test-consumer test-pip
+test: build test-cpp test-python test-consumer test-pip test-examples test-notebook docs
 	@echo "make test: all suites passed"
 
 test-cpp: build
@@ -52,6 +55,21 @@ test-consumer: build
 
 test-pip: deps
 	PYTHON=$(PYTHON) JOBS=$(JOBS) scripts/test-pip-install.sh
+
+test-examples: build
+	PYTHONPATH=$(CURDIR)/$(BUILD_DIR)/python $(PYTHON) examples/cluster_bench/sweep.py --quick \
+	  --out $(BUILD_DIR)/cluster_bench
+
+test-notebook: build
+	PYTHON=$(PYTHON) scripts/test-notebook.sh $(BUILD_DIR)
+
+# API reference from include/ds3d/*.hpp (Doxyfile); any doxygen warning fails the target.
+docs: deps
+	@mkdir -p $(BUILD_DIR)/docs
+	DS3D_DOCS_DIR=$(BUILD_DIR)/docs doxygen Doxyfile
+	@if [ -s $(BUILD_DIR)/docs/warnings.log ]; then cat $(BUILD_DIR)/docs/warnings.log; \
+	  echo "make docs: $$(wc -l < $(BUILD_DIR)/docs/warnings.log) doxygen warning(s)"; exit 1; fi
+	@echo "make docs: $(BUILD_DIR)/docs/html/index.html (no warnings)"
 
 test-asan: deps
 	cmake -S . -B $(ASAN_DIR) -G $(GENERATOR) -DCMAKE_BUILD_TYPE=Debug -DDS3D_SANITIZE=ON \

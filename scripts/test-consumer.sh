@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
-# Installs the build in BUILD_DIR into a temporary prefix and builds examples/consumer/ against it
-# with find_package(ds3d); also checks that a header-only install (no SLAM) serves ds3d::core and
-# that asking it for COMPONENTS slam fails cleanly at configure time.
+# Installs the build in BUILD_DIR into a temporary prefix and builds examples/consumer/,
+# examples/include_in_slam/ and examples/cluster_bench/ against it with find_package(ds3d), then
+# runs them (include_in_slam exits non-zero when the person's keypoints are not removed;
+# cluster_bench runs its smallest cases once). Also checks that a header-only install (no SLAM)
+# serves ds3d::core, builds and runs include_in_slam against it (no OpenCV, no Ceres), and that
+# asking it for COMPONENTS slam fails cleanly at configure time.
+# DS3D_EXTRA_CONSUMERS="dir ..." adds more examples/<dir> projects to the build loop.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${1:-build}
@@ -12,13 +16,17 @@ trap 'rm -rf "$tmp"' EXIT
 
 echo "consumer: installing ${BUILD_DIR} into ${tmp}/prefix"
 cmake --install "${BUILD_DIR}" --prefix "${tmp}/prefix" >/dev/null
-for example in consumer ${DS3D_EXTRA_CONSUMERS:-}; do
-  cmake -S "examples/${example}" -B "${tmp}/build-${example}" -G Ninja \
-    -DCMAKE_PREFIX_PATH="${tmp}/prefix" -DCONSUMER_COMPONENTS=slam >/dev/null
+for example in consumer include_in_slam cluster_bench ${DS3D_EXTRA_CONSUMERS:-}; do
+  echo "consumer: building examples/${example} against the installed package"
+  cmake -S "examples/${example}" -B "${tmp}/build-${example}" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+    -DCMAKE_PREFIX_PATH="${tmp}/prefix" -DCONSUMER_COMPONENTS=slam --no-warn-unused-cli >/dev/null
   cmake --build "${tmp}/build-${example}" >/dev/null
 done
 "${tmp}/build-consumer/app"
 "${tmp}/build-consumer/app_core"
+"${tmp}/build-include_in_slam/include_in_slam"
+"${tmp}/build-cluster_bench/cluster_bench" '--benchmark_filter=/n:(1000|100)(/|$)' \
+  --benchmark_min_time=0.01
 
 echo "consumer: header-only install (DS3D_BUILD_SLAM=OFF)"
 cmake -S . -B "${tmp}/core-build" -G Ninja -DDS3D_BUILD_SLAM=OFF -DDS3D_BUILD_TESTS=OFF \
@@ -28,6 +36,11 @@ cmake -S examples/consumer -B "${tmp}/build-core" -G Ninja -DCMAKE_PREFIX_PATH="
   -DCONSUMER_CORE_ONLY=ON >/dev/null
 cmake --build "${tmp}/build-core" >/dev/null
 "${tmp}/build-core/app_core"
+cmake -S examples/include_in_slam -B "${tmp}/build-core-slam-example" -G Ninja \
+  -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="${tmp}/core-prefix" >/dev/null
+cmake --build "${tmp}/build-core-slam-example" >/dev/null
+"${tmp}/build-core-slam-example/include_in_slam" >/dev/null
+echo "consumer: include_in_slam builds and passes against the header-only install"
 if cmake -S examples/consumer -B "${tmp}/build-core-slam" -G Ninja \
      -DCMAKE_PREFIX_PATH="${tmp}/core-prefix" -DCONSUMER_CORE_ONLY=ON -DCONSUMER_COMPONENTS=slam \
      >"${tmp}/slam.log" 2>&1; then

@@ -23,6 +23,7 @@
 
 namespace ds3d::slam {
 
+/// A pose increment (ω, v): rotation [rad] then translation [m], as taken by pose_plus().
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
 /// Undistorted pinhole intrinsics plus the virtual stereo baseline times fx (ORB-SLAM2's "bf").
@@ -43,11 +44,16 @@ struct Observation {
   double u_right = 0.0;     ///< virtual right u [px] (u − bf/z); used only when has_depth
   bool has_depth = false;   ///< true: 3-DoF (u, v, u_right) observation; false: monocular (u, v)
   double inv_sigma2 = 1.0;  ///< information weight 1/σ² of the keypoint's octave, > 0
+  /// True for a 3-DoF (u, v, u_right) observation: the same as has_depth.
   [[nodiscard]] bool stereo() const noexcept { return has_depth; }
 };
 
 /// Weighted reprojection residual of `p_world` seen at `obs` from pose T_cam_world, with its
 /// analytic Jacobians. Residual = sqrt(inv_sigma2) · (observed − predicted); rows (u, v[, u_r]).
+/// @param k        intrinsics (undistorted) and bf
+/// @param T_cam_world pose of the camera (world → camera)
+/// @param p_world  the point [m, world]
+/// @param obs      where it was observed (pixel, u_right when it has depth, weight)
 /// @param residual output, 2 or 3 values
 /// @param j_pose  if non-null, row-major dim×6 output: d residual / d delta under pose_plus
 /// @param j_point if non-null, row-major dim×3 output: d residual / d p_world
@@ -81,6 +87,7 @@ struct PoseOptimizationResult {
 /// @param initial  starting pose T_cam_world
 /// @param points   world points, one per observation
 /// @param observations same size as `points`
+/// @param params   χ² thresholds, rounds and iterations (PoseOptimizerParams)
 /// @throws ds3d::InvalidArgument if the sizes differ or params are bad.
 /// @note O(rounds · iterations · n). Deterministic. With fewer than 3 observations the
 ///       initial pose is returned unchanged with every observation marked as an outlier.
@@ -124,6 +131,7 @@ struct LocalBaResult {
 /// @param fixed one flag per pose; true = held constant
 /// @param points initial world points
 /// @param observations links between them; indices must be in range
+/// @param params iterations and χ² thresholds (LocalBaParams)
 /// @throws ds3d::InvalidArgument on size or index mismatch, no fixed pose, or bad params.
 /// @note Uses the Schur complement (points eliminated). Deterministic (single-threaded Ceres).
 [[nodiscard]] LocalBaResult local_bundle_adjustment(const StereoIntrinsics& k,

@@ -26,10 +26,10 @@ struct PinholeCamera {
   int width = 640;              ///< image width [px], > 0
   int height = 480;             ///< image height [px], > 0
   double k1 = 0.0;              ///< radial distortion coefficients (OpenCV order)
-  double k2 = 0.0;              ///<
+  double k2 = 0.0;              ///< second radial coefficient (r⁴)
   double p1 = 0.0;              ///< tangential distortion coefficients
-  double p2 = 0.0;              ///<
-  double k3 = 0.0;              ///<
+  double p2 = 0.0;              ///< second tangential coefficient
+  double k3 = 0.0;              ///< third radial coefficient (r⁶)
   double depth_scale = 5000.0;  ///< depth-image units per metre, > 0
 
   /// Throws ds3d::InvalidArgument naming `function` and the bad field.

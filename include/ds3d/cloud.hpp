@@ -83,53 +83,71 @@ template <PointCloud C>
 }
 }  // namespace cloud
 
+/// Traits of Points3f: one point per row (numpy (N, 3) float32 without a copy).
 template <>
 struct PointCloudTraits<Points3f> {
+  /// Number of rows.
   static std::size_t size(const Points3f& c) { return static_cast<std::size_t>(c.rows()); }
+  /// Row i as a column vector [m]; no bounds check.
   static Eigen::Vector3f point(const Points3f& c, std::size_t i) {
     return c.row(static_cast<Eigen::Index>(i)).transpose();
   }
 };
 
+/// Traits of Points3d: one point per row, read as float (numpy (N, 3) float64).
 template <>
 struct PointCloudTraits<Points3d> {
+  /// Number of rows.
   static std::size_t size(const Points3d& c) { return static_cast<std::size_t>(c.rows()); }
+  /// Row i rounded to float [m]; no bounds check.
   static Eigen::Vector3f point(const Points3d& c, std::size_t i) {
     return c.row(static_cast<Eigen::Index>(i)).transpose().cast<float>();
   }
 };
 
+/// Traits of a read-only view of Points3f (what the Eigen overloads and bindings pass on).
 template <>
 struct PointCloudTraits<Eigen::Ref<const Points3f>> {
+  /// Number of rows.
   static std::size_t size(const Eigen::Ref<const Points3f>& c) {
     return static_cast<std::size_t>(c.rows());
   }
+  /// Row i as a column vector [m]; no bounds check.
   static Eigen::Vector3f point(const Eigen::Ref<const Points3f>& c, std::size_t i) {
     return c.row(static_cast<Eigen::Index>(i)).transpose();
   }
 };
 
+/// Traits of a read-only view of Points3d, read as float.
 template <>
 struct PointCloudTraits<Eigen::Ref<const Points3d>> {
+  /// Number of rows.
   static std::size_t size(const Eigen::Ref<const Points3d>& c) {
     return static_cast<std::size_t>(c.rows());
   }
+  /// Row i rounded to float [m]; no bounds check.
   static Eigen::Vector3f point(const Eigen::Ref<const Points3d>& c, std::size_t i) {
     return c.row(static_cast<Eigen::Index>(i)).transpose().cast<float>();
   }
 };
 
+/// Traits of std::vector<Eigen::Vector3f> (any allocator).
 template <class Alloc>
 struct PointCloudTraits<std::vector<Eigen::Vector3f, Alloc>> {
+  /// Number of elements.
   static std::size_t size(const std::vector<Eigen::Vector3f, Alloc>& c) { return c.size(); }
+  /// Element i [m]; no bounds check.
   static Eigen::Vector3f point(const std::vector<Eigen::Vector3f, Alloc>& c, std::size_t i) {
     return c[i];
   }
 };
 
+/// Traits of std::vector<std::array<float, 3>> (any allocator): {x, y, z} per element.
 template <class Alloc>
 struct PointCloudTraits<std::vector<std::array<float, 3>, Alloc>> {
+  /// Number of elements.
   static std::size_t size(const std::vector<std::array<float, 3>, Alloc>& c) { return c.size(); }
+  /// Element i as (x, y, z) [m]; no bounds check.
   static Eigen::Vector3f point(const std::vector<std::array<float, 3>, Alloc>& c, std::size_t i) {
     return {c[i][0], c[i][1], c[i][2]};
   }

@@ -42,6 +42,7 @@ struct RgbdFrame {
 
 /// Parses camera.txt content: one `key value` per line, '#' comments; keys fx fy cx cy (required),
 /// k1 k2 p1 p2 k3 (default 0), depth_scale (default 5000), width height (default 640 480).
+/// @param text   the file's content
 /// @param source name used in error messages
 /// @throws ds3d::IoError naming source and line for an unknown or repeated key, a value that is
 ///         not a number, a missing required key or an invalid camera.

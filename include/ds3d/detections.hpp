@@ -96,6 +96,7 @@ class DetectionsFile {
     return best;
   }
 
+  /// All frames, sorted by timestamp.
   [[nodiscard]] const std::vector<DetectionFrame>& frames() const noexcept { return frames_; }
 
  private:

@@ -66,7 +66,9 @@ struct ImageBox {
   [[nodiscard]] bool contains(float u, float v) const noexcept {
     return u >= x_min && u <= x_max && v >= y_min && v <= y_max;
   }
+  /// Width x_max − x_min [px].
   [[nodiscard]] float width() const noexcept { return x_max - x_min; }
+  /// Height y_max − y_min [px].
   [[nodiscard]] float height() const noexcept { return y_max - y_min; }
   /// Intersection over union with another box (0 when either is empty).
   [[nodiscard]] float iou(const ImageBox& o) const noexcept {
@@ -122,7 +124,7 @@ struct BoxOutcome {
   int num_clusters = 0;    ///< HDBSCAN clusters found (0 for the fallback)
   int num_dynamic = 0;     ///< keypoints of this box marked dynamic
   float z_front = 0.0F;    ///< foreground depth range [m] (0, 0 when none was found)
-  float z_back = 0.0F;     ///<
+  float z_back = 0.0F;     ///< far end of the foreground depth range [m]
 };
 
 /// Output of DynamicFeatureFilter::filter().
@@ -164,6 +166,7 @@ class DynamicFeatureFilter {
     for (const Carried& c : carried_) out.push_back(c.region);
     return out;
   }
+  /// The parameters as validated by the constructor.
   [[nodiscard]] const DynamicFilterParams& params() const noexcept { return params_; }
 
  private:

@@ -42,6 +42,7 @@ class FileSource final : public DynamicObjectSource {
   [[nodiscard]] std::string name() const override { return "file"; }
   /// Frames whose timestamp matched a detections line so far, and frames that did not.
   [[nodiscard]] std::size_t num_matched() const noexcept { return matched_; }
+  /// Frames for which no detections line was within max_dt (see num_matched()).
   [[nodiscard]] std::size_t num_unmatched() const noexcept { return unmatched_; }
 
  private:

@@ -92,7 +92,9 @@ class GeometricMotionSource final : public DynamicObjectSource {
   /// Moving objects of `frame` as 3-D boxes (camera frame). Frames without depth give nothing.
   DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
   [[nodiscard]] std::string name() const override { return "geometric"; }
+  /// Counters of the last detect() call (matches, moving keypoints, warp pixels, objects).
   [[nodiscard]] const GeometricMotionStats& last_stats() const noexcept { return stats_; }
+  /// The parameters as validated by the constructor.
   [[nodiscard]] const GeometricMotionParams& params() const noexcept { return params_; }
 
  private:

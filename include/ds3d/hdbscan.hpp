@@ -133,8 +133,9 @@ struct HdbscanResult {
 [[nodiscard]] inline HdbscanResult hdbscan_precomputed(Eigen::Ref<const RowMatrixXd> distances,
                                                        const HdbscanParams& params = {});
 
-/// Renders a ClusterSelection / MstAlgorithm as the reference's string ("eom", "prims", ...).
+/// Renders a ClusterSelection as the reference's string ("eom" or "leaf").
 [[nodiscard]] inline std::string to_string(ClusterSelection method);
+/// Renders an MstAlgorithm as a string ("auto", "prims" or "boruvka").
 [[nodiscard]] inline std::string to_string(MstAlgorithm algorithm);
 
 }  // namespace ds3d

@@ -45,6 +45,7 @@ struct OrbFeatures {
   std::vector<Eigen::Vector2f> undistorted;  ///< undistorted pixel (u, v) with the same intrinsics
   std::vector<float> depth;  ///< depth [m] at the keypoint; 0 when missing or outside [min_depth, max_range]
   float close_depth = 3.0F;  ///< params.max_depth: the close/far threshold [m]
+  /// Number of keypoints.
   [[nodiscard]] std::size_t size() const noexcept { return keypoints.size(); }
   /// True if keypoint i has a measured depth.
   [[nodiscard]] bool has_depth(std::size_t i) const noexcept { return depth[i] > 0.0F; }
@@ -75,6 +76,7 @@ class OrbExtractor {
 
   /// Scale of pyramid level `level` relative to level 0 (scale_factor^level).
   [[nodiscard]] double level_scale(int level) const { return scales_.at(static_cast<std::size_t>(level)); }
+  /// The parameters as validated by the constructor.
   [[nodiscard]] const OrbParams& params() const noexcept { return params_; }
 
  private:

@@ -92,8 +92,10 @@ struct PreprocessResult {
   std::size_t num_ground = 0;      ///< centroids removed as ground
   std::size_t num_outliers = 0;    ///< centroids removed as outliers
   std::size_t num_non_finite = 0;  ///< input points skipped as non-finite
+  /// @{
   /// Wall time per stage [ms]: depth, voxel, ground, outlier (depth is 0 for cloud input).
   double ms_depth = 0, ms_voxel = 0, ms_ground = 0, ms_outlier = 0;
+  /// @}
 };
 
 /// Runs the whole chain on a 16-bit depth image (see depth_to_points for the image arguments).

@@ -34,9 +34,12 @@ using Pixels2i = Eigen::Matrix<std::int32_t, Eigen::Dynamic, 2, Eigen::RowMajor>
 /// Precomputed normalised rays (x/z, y/z) of every pixel of a camera, undistorted.
 /// Build once per camera with make_pixel_rays() and pass it in DepthToPointsParams::rays.
 struct PixelRays {
-  int width = 0;             ///< image width [px]
-  int height = 0;            ///< image height [px]
+  int width = 0;   ///< image width [px]
+  int height = 0;  ///< image height [px]
+  /// @name Rays
+  /// @{
   std::vector<double> x, y;  ///< ray of pixel (u, v) at index v * width + u
+  /// @}
 };
 
 /// Undistorted rays of every pixel of `camera` (PinholeCamera::undistort, 20 fixed-point steps).

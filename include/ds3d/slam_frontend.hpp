@@ -203,7 +203,9 @@ class SlamFrontend {
                         std::shared_ptr<DynamicObjectSource> source = nullptr,
                         std::shared_ptr<DynamicFeatureMasker> masker = nullptr);
   ~SlamFrontend();
+  /// Moves the front-end; the source is left empty (only destruction and assignment are valid).
   SlamFrontend(SlamFrontend&&) noexcept;
+  /// Move assignment; the source is left empty.
   SlamFrontend& operator=(SlamFrontend&&) noexcept;
   SlamFrontend(const SlamFrontend&) = delete;
   SlamFrontend& operator=(const SlamFrontend&) = delete;
@@ -244,12 +246,17 @@ class SlamFrontend {
   /// Writes map_points() as an ASCII PLY file. @throws ds3d::IoError when it cannot be written.
   void write_map_ply(const std::filesystem::path& path) const;
 
+  /// The configuration as validated by the constructor.
   [[nodiscard]] const FrontendConfig& config() const noexcept;
+  /// Keyframes in the map so far.
   [[nodiscard]] std::size_t num_keyframes() const noexcept;
   /// Local BAs run so far, and their total thread CPU time [ms] (measured in the mapping thread).
   [[nodiscard]] std::size_t num_local_ba() const noexcept;
+  /// Total thread CPU time of the local BAs so far [ms] (see num_local_ba()).
   [[nodiscard]] double local_ba_ms() const noexcept;
+  /// The dynamic-object source in use (NoDynamicObjects when none was given).
   [[nodiscard]] const DynamicObjectSource& dynamic_source() const noexcept;
+  /// The dynamic-feature masker in use (NoDynamicMasker when none was given).
   [[nodiscard]] const DynamicFeatureMasker& dynamic_masker() const noexcept;
 
  private:
@@ -274,6 +281,7 @@ struct PipelineOptions {
 /// @param slam   the front-end (its dynamic stages are used)
 /// @param next   returns the next frame, or std::nullopt at the end; called from one thread
 /// @param on_result called on the calling thread for every frame, in order (may be empty)
+/// @param options threaded or not, queue capacity between stages
 /// @return the results of all frames in order
 /// @throws whatever a stage throws (rethrown on the caller after the threads stop).
 /// @note Results are identical to calling track() on each frame (stages are pure or run in
@@ -285,7 +293,11 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
 
 /// run_pipeline over the first `max_frames` frames of a dataset (images are read on the
 /// pipeline's reader thread).
+/// @param slam       the front-end (its dynamic stages are used)
+/// @param dataset    an opened TUM/Bonn-layout dataset
 /// @param max_frames 0 = all frames
+/// @param on_result  called on the calling thread for every frame, in order (may be empty)
+/// @param options    threaded or not, queue capacity between stages
 /// @throws ds3d::IoError for unreadable images; what run_pipeline throws.
 std::vector<TrackResult> run_dataset(SlamFrontend& slam, const RgbdDataset& dataset,
                                      std::size_t max_frames = 0,

@@ -102,7 +102,9 @@ class SyntheticScene {
   /// @throws ds3d::InvalidArgument for bad options.
   explicit SyntheticScene(const SynthOptions& options);
   ~SyntheticScene();
+  /// Moves the scene; the source is left empty (only destruction and assignment are valid).
   SyntheticScene(SyntheticScene&&) noexcept;
+  /// Move assignment; the source is left empty.
   SyntheticScene& operator=(SyntheticScene&&) noexcept;
   SyntheticScene(const SyntheticScene&) = delete;
   SyntheticScene& operator=(const SyntheticScene&) = delete;
@@ -128,13 +130,15 @@ struct SynthSummary {
   double total_seconds = 0;        ///< wall time of the whole call
 };
 
-/// Writes a TUM-layout folder: rgb/<t>.png, depth/<t>.png (16-bit, x depth_scale), rgb.txt,
-/// depth.txt, groundtruth.txt (100 Hz, analytic), camera.txt, mask/<t>.png (dynamic pixels,
+/// Writes a TUM-layout folder: rgb/TIME.png, depth/TIME.png (16-bit, x depth_scale), rgb.txt,
+/// depth.txt, groundtruth.txt (100 Hz, analytic), camera.txt, mask/TIME.png (dynamic pixels,
 /// 0/255), boxes.jsonl (one JSON object per frame: timestamp, frame, boxes[{id, center, size,
-/// yaw, sitting, visible_pixels}]), and with options.write_parts: parts/<t>.png (CV_8UC3: B =
-/// human id (k+1), G = part id, R = 0) and parts_loc/<t>.png (CV_16UC3, x y z location in the box
-/// x 65535). Every file is written to a temporary name and renamed; the lists are written last.
+/// yaw, sitting, visible_pixels}]), and with options.write_parts: parts/TIME.png (CV_8UC3: B =
+/// human id (k+1), G = part id, R = 0) and parts_loc/TIME.png (CV_16UC3, x y z location in the
+/// box x 65535); TIME is the frame's timestamp. Every file is written to a temporary name and
+/// renamed; the lists are written last.
 /// @param out_dir created if missing
+/// @param options scenario, frames, seed, humans, fps, noise and parts (validated first)
 /// @throws ds3d::InvalidArgument for bad options; ds3d::IoError when writing fails.
 SynthSummary generate_sequence(const std::filesystem::path& out_dir, const SynthOptions& options);
 

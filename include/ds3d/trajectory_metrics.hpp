@@ -148,6 +148,7 @@ struct AteOptions {
   double offset = 0.0;                    ///< added to estimate stamps [s]
   double scale = 1.0;                     ///< estimate positions are multiplied by it, > 0
   Alignment alignment = Alignment::kSE3;  ///< se3 (TUM), sim3 or none
+  /// Throws ds3d::InvalidArgument naming the bad field and value.
   void validate() const {
     DS3D_CHECK(std::isfinite(max_difference) && max_difference >= 0,
                "ds3d::evaluate_ate: max_difference must be finite and >= 0 (got ", max_difference,
@@ -186,6 +187,7 @@ struct AteResult {
   std::size_t num_gt_poses = 0;    ///< unique, finite ground-truth poses used
   std::size_t num_est_poses = 0;   ///< unique, finite estimate poses used
   std::size_t num_non_finite = 0;  ///< poses skipped (non-finite stamp or position)
+  /// The error statistics alone (rmse, mean, median, std, min, max).
   [[nodiscard]] ErrorStats stats() const { return {rmse, mean, median, std, min, max}; }
 };
 
@@ -346,12 +348,15 @@ enum class RpeConvention : std::uint8_t {
 struct RpeOptions {
   bool fixed_delta = true;  ///< false: all ordered pairs (or max_pairs random ones)
   double delta = 1.0;       ///< in delta_unit, finite
+  /// Unit of delta: s, f, m, rad or deg (see DeltaUnit).
   DeltaUnit delta_unit = DeltaUnit::kSeconds;
   std::size_t max_pairs = 10000;  ///< 0 = no limit; above it pairs are subsampled
   double offset = 0.0;            ///< added to estimate stamps [s]
   double scale = 1.0;             ///< estimate relative translations are scaled by it, > 0
+  /// Error convention: the TUM script's, or evo's (see RpeConvention).
   RpeConvention convention = RpeConvention::kTum;
   std::uint64_t seed = 1;  ///< subsampling RNG (the script uses Python's random)
+  /// Throws ds3d::InvalidArgument naming the bad field and value.
   void validate() const {
     DS3D_CHECK(std::isfinite(delta), "ds3d::evaluate_rpe: delta must be finite (got ", delta, ")");
     DS3D_CHECK(std::isfinite(offset), "ds3d::evaluate_rpe: offset must be finite (got ", offset,

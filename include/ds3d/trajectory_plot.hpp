@@ -28,6 +28,7 @@ struct AtePlotOptions {
 /// positions (for TUM's z-up mocap frame: the floor plane), equal scale on both axes.
 /// @param gt     the ground truth (its whole path is drawn)
 /// @param result evaluate_ate(gt, est) (matches give the aligned estimate and errors)
+/// @param options image size and title
 /// @return CV_8UC3 image
 /// @throws ds3d::InvalidArgument for bad options or a result without matches.
 [[nodiscard]] cv::Mat render_ate_plot(const Trajectory& gt, const AteResult& result,

@@ -4,8 +4,11 @@
 /// @file version.hpp
 /// @brief Library version. CMake reads the numbers below, so this file is the single source.
 
+/// Major version: incompatible API changes.
 #define DS3D_VERSION_MAJOR 0
+/// Minor version: compatible additions (the package accepts the same minor version).
 #define DS3D_VERSION_MINOR 1
+/// Patch version: fixes only.
 #define DS3D_VERSION_PATCH 0
 
 namespace ds3d {

@@ -28,10 +28,11 @@ enum class DType : std::uint8_t { kF32, kF16, kBF16, kF64, kI64, kI32, kI16, kI8
 
 /// One tensor as stored in the file.
 struct TensorView {
-  DType dtype = DType::kF32;
+  DType dtype = DType::kF32;        ///< element type as stored
   std::vector<std::int64_t> shape;  ///< empty for a 0-d tensor (one element)
   std::size_t begin = 0;            ///< byte offset into WeightsFile::data
   std::size_t end = 0;              ///< one past the last byte
+  /// Number of elements: the product of shape (1 for a 0-d tensor).
   [[nodiscard]] std::int64_t numel() const;
 };
 
@@ -47,6 +48,7 @@ class WeightsFile {
 
   /// Tensor names in lexicographic order.
   [[nodiscard]] std::vector<std::string> names() const;
+  /// True if the file has a tensor called `name`.
   [[nodiscard]] bool contains(std::string_view name) const;
   /// The entry of `name`. @throws ds3d::IoError if absent.
   [[nodiscard]] const TensorView& tensor(std::string_view name) const;
@@ -74,14 +76,15 @@ class WeightsFile {
 
 /// One float32 tensor to write.
 struct NamedTensor {
-  std::string name;
+  std::string name;                 ///< tensor name, unique within a file
   std::vector<std::int64_t> shape;  ///< empty for a 0-d tensor
   std::vector<float> data;          ///< product(shape) values, C order
 };
 
 /// Serialises tensors (F32) and string metadata into the safetensors layout (header padded with
 /// spaces to 8-byte alignment), the inverse of WeightsFile::parse.
-/// @throws ds3d::InvalidArgument if a tensor's data size does not match its shape or a name repeats.
+/// @throws ds3d::InvalidArgument if a tensor's data size does not match its shape or a name
+/// repeats.
 [[nodiscard]] std::string serialize_safetensors(const std::vector<NamedTensor>& tensors,
                                                 const std::map<std::string, std::string>& metadata);
 
