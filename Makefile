@@ -9,6 +9,7 @@
 #   make test-examples  cluster_bench/sweep.py --quick (the C++ examples run in ctest and
 #                    test-consumer); make test-notebook: executes examples/notebooks headless
 #   make test-asan   Debug + AddressSanitizer + UBSan build in build-asan/ and its ctest
+#                    (per-test limit 3000 s: brute-force cross-checks are slow at -O0 + ASan)
 #   make bench       every Google Benchmark binary -> bench/results/<name>.json + summary.md
 #   make format / format-check / tidy
 PYTHON      ?= /usr/bin/python3
@@ -73,6 +74,7 @@ docs: deps
 
 test-asan: deps
 	cmake -S . -B $(ASAN_DIR) -G $(GENERATOR) -DCMAKE_BUILD_TYPE=Debug -DDS3D_SANITIZE=ON \
+	  -DDS3D_TEST_TIMEOUT=3000 \
 	  -DDS3D_BUILD_PYTHON=OFF -DDS3D_BUILD_BENCH=OFF -DPython_EXECUTABLE=$(PYTHON) $(CMAKE_FLAGS)
 	cmake --build $(ASAN_DIR) -j $(JOBS)
 	cd $(ASAN_DIR) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
