@@ -135,10 +135,38 @@ class KnnTreeSmall {
     hi_.reserve(nodes_.capacity() * dim_);
     build(ds.data, 0, static_cast<std::uint32_t>(n_));
     pts_.resize(n_ * dim_);
+    soa_.resize(n_ * dim_);
     for (std::size_t s = 0; s < n_; ++s) {
-      std::copy_n(ds.data + static_cast<std::size_t>(order_[s]) * dim_, dim_,
-                  pts_.data() + s * dim_);
+      const double* src = ds.data + static_cast<std::size_t>(order_[s]) * dim_;
+      std::copy_n(src, dim_, pts_.data() + s * dim_);
+      for (std::size_t j = 0; j < dim_; ++j) soa_[j * n_ + s] = src[j];
     }
+  }
+
+  /// Core distances only (no neighbour ids): core[i] = sqrt of the (k+1)-th smallest squared
+  /// distance from i, itself included. The value does not depend on how ties are ordered, so
+  /// the kept list holds distances only, candidates equal to the current (k+1)-th are skipped,
+  /// and every leaf is scanned as one vectorisable pass over coordinates stored per dimension.
+  /// Bitwise equal to run(): the same sq_dist_seq sums, lane by lane.
+  void run_core_only(std::size_t k, int num_threads, std::vector<double>& core) const {
+    const std::size_t kk = k + 1;
+    core.assign(n_, 0.0);
+    std::vector<std::uint32_t> leaves;
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+      if (nodes_[i].left < 0) leaves.push_back(static_cast<std::uint32_t>(i));
+    }
+    parallel_chunks(leaves.size(),
+                    std::size_t{16} * static_cast<std::size_t>(std::max(1, num_threads)),
+                    num_threads, [&](std::size_t begin, std::size_t end, std::size_t) {
+                      std::vector<double> bd(kk);
+                      for (std::size_t li = begin; li < end; ++li) {
+                        const auto leaf = leaves[li];
+                        const Node& ln = nodes_[leaf];
+                        for (auto s = ln.begin; s < ln.end; ++s) {
+                          core[order_[s]] = std::sqrt(query_core(s, leaf, kk, bd.data()));
+                        }
+                      }
+                    });
   }
 
   void run(std::size_t k, int num_threads, std::vector<double>& core,
@@ -289,9 +317,89 @@ class KnnTreeSmall {
     return cnt;
   }
 
+  // Squared distances from q to the tree positions [b, b + len), len <= kLeafSize, into out:
+  // one pass per dimension over contiguous coordinates, so the compiler vectorises it; each
+  // lane sums its squares in dimension order exactly like sq_dist_seq.
+  void leaf_sq_dists(const double* q, std::uint32_t b, std::uint32_t len, double* out) const {
+    const std::size_t d = dim();
+    {
+      const double* x = soa_.data() + b;
+      const double q0 = q[0];
+      for (std::uint32_t t = 0; t < len; ++t) {
+        const double g = x[t] - q0;
+        out[t] = no_contract(g * g);
+      }
+    }
+    for (std::size_t j = 1; j < d; ++j) {
+      const double* x = soa_.data() + j * n_ + b;
+      const double qj = q[j];
+      for (std::uint32_t t = 0; t < len; ++t) {
+        const double g = x[t] - qj;
+        out[t] += no_contract(g * g);
+      }
+    }
+  }
+
+  // The (k+1)-th smallest squared distance from tree position s (in leaf `leaf`); bd holds the
+  // kk smallest so far, ascending.
+  double query_core(std::uint32_t s, std::uint32_t leaf, std::size_t kk, double* bd) const {
+    const std::size_t d = dim();
+    const double* q = pts_.data() + static_cast<std::size_t>(s) * d;
+    std::size_t cnt = 0;
+    double worst = std::numeric_limits<double>::infinity();
+    double buf[kLeafSize];
+    auto scan = [&](const Node& nd) {
+      for (auto b = nd.begin; b < nd.end; b += kLeafSize) {
+        const std::uint32_t len = std::min(kLeafSize, nd.end - b);
+        leaf_sq_dists(q, b, len, buf);
+        for (std::uint32_t t = 0; t < len; ++t) {
+          const double d2 = buf[t];
+          if (d2 >= worst) continue;  // cannot lower the (k+1)-th smallest
+          std::size_t pos = cnt < kk ? cnt++ : kk - 1;
+          while (pos > 0 && bd[pos - 1] > d2) {
+            bd[pos] = bd[pos - 1];
+            --pos;
+          }
+          bd[pos] = d2;
+          if (cnt == kk) worst = bd[kk - 1];
+        }
+      }
+    };
+    scan(nodes_[leaf]);
+    struct Entry {
+      std::uint32_t node;
+      double box2;
+    };
+    Entry stack[128];
+    int top = 0;
+    stack[top++] = {0, 0.0};
+    while (top > 0) {
+      const Entry en = stack[--top];
+      if (en.box2 >= worst || en.node == leaf) continue;
+      const Node& nd = nodes_[en.node];
+      if (nd.left < 0) {
+        scan(nd);
+        continue;
+      }
+      const auto l = static_cast<std::uint32_t>(nd.left);
+      const auto r = static_cast<std::uint32_t>(nd.right);
+      const Entry el{l, box_dist2(q, l)};
+      const Entry er{r, box_dist2(q, r)};
+      if (el.box2 <= er.box2) {  // nearer child on top
+        if (er.box2 < worst) stack[top++] = er;
+        if (el.box2 < worst) stack[top++] = el;
+      } else {
+        if (el.box2 < worst) stack[top++] = el;
+        if (er.box2 < worst) stack[top++] = er;
+      }
+    }
+    return bd[cnt - 1];
+  }
+
   std::size_t n_, dim_;
   std::vector<std::uint32_t> order_;  // tree position -> point id
   std::vector<double> pts_;           // coordinates in tree order
+  std::vector<double> soa_;           // the same, per dimension: soa_[j * n_ + s]
   std::vector<Node> nodes_;
   std::vector<double> lo_, hi_;  // node boxes
 };
@@ -299,7 +407,15 @@ class KnnTreeSmall {
 inline std::vector<double> knn_core_distances(const DenseRowsNd& ds, std::size_t k, int num_threads,
                                               std::vector<std::uint32_t>* neighbors = nullptr) {
   std::vector<double> core;
-  if (ds.n <= kSmallKnnMaxPoints) {
+  if (ds.n <= kSmallKnnMaxPoints && neighbors == nullptr) {
+    if (ds.dim == 3) {
+      KnnTreeSmall<3>(ds).run_core_only(k, num_threads, core);
+    } else if (ds.dim == 2) {
+      KnnTreeSmall<2>(ds).run_core_only(k, num_threads, core);
+    } else {
+      KnnTreeSmall<-1>(ds).run_core_only(k, num_threads, core);
+    }
+  } else if (ds.n <= kSmallKnnMaxPoints) {
     if (ds.dim == 3) {
       KnnTreeSmall<3>(ds).run(k, num_threads, core, neighbors);
     } else if (ds.dim == 2) {
