@@ -145,6 +145,13 @@ inline std::size_t prim_step_3d_sse2(PrimSoA& s, const double* c, double cc2, do
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #define DS3D_HDBSCAN_AVX2 1
+// no_contract() for functions with a target attribute: target("avx512f") enables FMA inside the
+// function although the translation unit's __FMA__ is off, so the barrier must be unconditional.
+inline double no_contract_x86(double p) {
+  asm("" : "+v"(p));
+  return p;
+}
+
 // The same step with 4-wide AVX2, compiled for that target only and chosen at run time (no FMA
 // is enabled for this function, so products and sums stay separate roundings).
 __attribute__((target("avx2"))) inline std::size_t prim_step_3d_avx2(PrimSoA& s, const double* c,
@@ -197,7 +204,7 @@ __attribute__((target("avx2"))) inline std::size_t prim_step_3d_avx2(PrimSoA& s,
     double d2 = 0.0;
     for (std::size_t j = 0; j < 3; ++j) {
       const double diff = s.coords[j][t] - c[j];
-      d2 += no_contract(diff * diff);
+      d2 += no_contract_x86(diff * diff);
     }
     const double lo = cc2 > core2[t] ? cc2 : core2[t];
     const double m2 = d2 > lo ? d2 : lo;
@@ -262,7 +269,7 @@ __attribute__((target("avx512f"))) inline std::size_t prim_step_3d_avx512(PrimSo
     double d2 = 0.0;
     for (std::size_t j = 0; j < 3; ++j) {
       const double diff = s.coords[j][t] - c[j];
-      d2 += no_contract(diff * diff);
+      d2 += no_contract_x86(diff * diff);
     }
     const double lo = cc2 > core2[t] ? cc2 : core2[t];
     const double m2 = d2 > lo ? d2 : lo;
