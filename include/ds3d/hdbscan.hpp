@@ -46,7 +46,7 @@ enum class ClusterSelection : std::uint8_t {
 /// Minimum-spanning-tree algorithm. All give the same MST weights (exact MST); under exactly
 /// equal mutual-reachability weights they may pick different (equally minimal) edges.
 enum class MstAlgorithm : std::uint8_t {
-  kAuto,     ///< Prim below 1500 points or above 8 dimensions, Borůvka otherwise
+  kAuto,     ///< Prim below 3000 points or above 8 dimensions, Borůvka otherwise
   kPrims,    ///< Prim on the implicit dense graph: O(n²·D) time, O(n·D) memory
   kBoruvka,  ///< KD-tree Borůvka: ~O(n log² n) for low D, O(n·(D + k)) memory
 };

@@ -234,8 +234,8 @@ inline __attribute__((target("avx512f"))) __m512d no_contract_v512(__m512d v) {
 // callgrind counts show the AVX2 step). Lanes track only the smallest key; its first slot is
 // then found by a second, early-exit pass, so the tie rule (first index) is unchanged.
 __attribute__((target("avx512f"))) inline std::size_t prim_step_3d_avx512(PrimSoA& s,
-                                                                         const double* c,
-                                                                         double cc2, double cur) {
+                                                                          const double* c,
+                                                                          double cc2, double cur) {
   const double* x = s.coords[0].data();
   const double* y = s.coords[1].data();
   const double* z = s.coords[2].data();
@@ -282,8 +282,8 @@ __attribute__((target("avx512f"))) inline std::size_t prim_step_3d_avx512(PrimSo
   if (!(best < std::numeric_limits<double>::infinity())) return s.m;
   const __m512d vb = _mm512_set1_pd(best);
   for (std::size_t u = 0; u < vec_end; u += 8) {  // first slot holding the smallest key
-    const auto hit = static_cast<unsigned>(
-        _mm512_cmp_pd_mask(_mm512_loadu_pd(key + u), vb, _CMP_EQ_OQ));
+    const auto hit =
+        static_cast<unsigned>(_mm512_cmp_pd_mask(_mm512_loadu_pd(key + u), vb, _CMP_EQ_OQ));
     if (hit != 0U) return u + static_cast<std::size_t>(__builtin_ctz(hit));
   }
   for (std::size_t u = vec_end; u < s.m; ++u) {
