@@ -223,8 +223,10 @@ __attribute__((target("avx2"))) inline std::size_t prim_step_3d_avx2(PrimSoA& s,
 #define DS3D_HDBSCAN_AVX512 1
 // GCC 12's _mm512_max_pd uses _mm512_undefined_pd, which trips a false
 // -Wmaybe-uninitialized under -Werror.
+#if !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 inline __attribute__((target("avx512f"))) __m512d no_contract_v512(__m512d v) {
   asm("" : "+v"(v));  // no FMA contraction across this product, whatever -ffp-contract says
   return v;
@@ -291,7 +293,9 @@ __attribute__((target("avx512f"))) inline std::size_t prim_step_3d_avx512(PrimSo
   }
   return s.m;
 }
+#if !defined(__clang__)
 #pragma GCC diagnostic pop
+#endif
 
 inline bool cpu_has_avx512() {
   static const bool has = __builtin_cpu_supports("avx512f") != 0;
