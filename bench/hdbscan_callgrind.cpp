@@ -9,10 +9,10 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
-#include <ctime>
-#include <vector>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
+#include <vector>
 
 #include "ds3d/hdbscan.hpp"
 #include "support/keypoints.hpp"
