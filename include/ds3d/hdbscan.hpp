@@ -21,8 +21,9 @@
 ///
 /// Distances are sqrt(Σ_j (a_j − b_j)²) summed in dimension order without FMA contraction
 /// (on FMA targets an empty asm barrier on each product keeps it apart whatever -ffp-contract
-/// says; the runtime-dispatched AVX2 kernel enables no FMA), so core distances and MST weights
-/// match the reference bit for bit. Do not build with -ffast-math.
+/// says; the runtime-dispatched AVX2 / AVX-512F Prim steps put that barrier on every product
+/// unconditionally), so core distances and MST weights match the reference bit for bit. Do not
+/// build with -ffast-math.
 
 #include <Eigen/Core>
 
