@@ -2,12 +2,17 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // One ds3d::hdbscan call on the benchmark data, for instruction counts that do not depend on the
 // machine load (not a Google Benchmark target; build and run commands in docs/hdbscan.md).
-// Usage: hdbscan_callgrind kp|blobs N [algo 0=auto 1=prims 2=boruvka]. Prints a hash of the
-// labels and MST weights so that two builds can be checked for bitwise-identical results.
+// Usage: hdbscan_callgrind kp|blobs N [algo 0=auto 1=prims 2=boruvka] [reps]. Prints a hash of
+// the labels and MST weights so that two builds can be checked for bitwise-identical results;
+// with reps > 0 it also times that many further calls and prints the median thread CPU time
+// (for same-run ratios of two builds on a loaded machine).
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
+#include <vector>
 
 #include "ds3d/hdbscan.hpp"
 #include "support/keypoints.hpp"
@@ -37,5 +42,22 @@ int main(int argc, char** argv) {
     h = h * 31U + b;
   }
   std::printf("clusters %d hash %llx\n", r.num_clusters, static_cast<unsigned long long>(h));
+  const int reps = argc > 4 ? std::atoi(argv[4]) : 0;
+  if (reps > 0) {
+    auto cpu_ms = [] {
+      timespec ts{};
+      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+      return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+    };
+    std::vector<double> t;
+    for (int i = 0; i < reps; ++i) {
+      const double t0 = cpu_ms();
+      const auto ri = ds3d::hdbscan(x, p);
+      t.push_back(cpu_ms() - t0);
+      if (ri.labels.size() != r.labels.size()) return 1;
+    }
+    std::sort(t.begin(), t.end());
+    std::printf("median CPU %.3f ms over %d calls\n", t[t.size() / 2], reps);
+  }
   return 0;
 }

@@ -454,35 +454,39 @@ TEST(Hdbscan, SameResultForAnyThreadCount) {
 }
 
 TEST(Hdbscan, SmallKnnTreeMatchesBruteForceForAnyThreadCount) {
-  // n <= detail::kSmallKnnMaxPoints uses KnnTreeSmall instead of nanoflann; check it bitwise
-  // against a brute-force (k+1)-th smallest distance, in 2, 3 and 5 dimensions.
-  for (const int dim : {2, 3, 5}) {
-    RowMatrixXd x(900, dim);  // clumped integer-grid points: many exact distance ties
-    std::uint64_t state = 21;
-    for (Eigen::Index i = 0; i < x.rows(); ++i) {
-      for (Eigen::Index j = 0; j < dim; ++j) {
-        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
-        x(i, j) = static_cast<double>((state >> 33) % 40) + 100.0 * static_cast<double>(i % 4);
+  // n <= detail::kSmallKnnMaxPoints uses KnnTreeSmall instead of nanoflann: the leaf-batched
+  // core-distance-only search for Prim, the neighbour-list search for Borůvka. Check both
+  // bitwise against a brute-force (k+1)-th smallest distance, in 2, 3 and 5 dimensions.
+  for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
+    for (const int dim : {2, 3, 5}) {
+      RowMatrixXd x(900, dim);  // clumped integer-grid points: many exact distance ties
+      std::uint64_t state = 21;
+      for (Eigen::Index i = 0; i < x.rows(); ++i) {
+        for (Eigen::Index j = 0; j < dim; ++j) {
+          state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+          x(i, j) = static_cast<double>((state >> 33) % 40) + 100.0 * static_cast<double>(i % 4);
+        }
       }
-    }
-    HdbscanParams p;
-    p.min_cluster_size = 12;
-    const auto a = ds3d::hdbscan(x, p);
-    const auto n = static_cast<std::size_t>(x.rows());
-    std::vector<double> row(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      for (std::size_t t = 0; t < n; ++t) {
-        row[t] = ds3d::detail::sq_dist_seq(x.data() + i * static_cast<std::size_t>(dim),
-                                           x.data() + t * static_cast<std::size_t>(dim),
-                                           static_cast<std::size_t>(dim));
+      HdbscanParams p;
+      p.min_cluster_size = 12;
+      p.algorithm = algorithm;
+      const auto a = ds3d::hdbscan(x, p);
+      const auto n = static_cast<std::size_t>(x.rows());
+      std::vector<double> row(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        for (std::size_t t = 0; t < n; ++t) {
+          row[t] = ds3d::detail::sq_dist_seq(x.data() + i * static_cast<std::size_t>(dim),
+                                             x.data() + t * static_cast<std::size_t>(dim),
+                                             static_cast<std::size_t>(dim));
+        }
+        std::nth_element(row.begin(), row.begin() + 12, row.end());
+        ASSERT_EQ(a.core_distances[i], std::sqrt(row[12])) << "dim " << dim << " point " << i;
       }
-      std::nth_element(row.begin(), row.begin() + 12, row.end());
-      ASSERT_EQ(a.core_distances[i], std::sqrt(row[12])) << "dim " << dim << " point " << i;
+      p.num_threads = 3;
+      const auto b = ds3d::hdbscan(x, p);
+      EXPECT_EQ(a.labels, b.labels);
+      EXPECT_EQ(a.core_distances, b.core_distances);
     }
-    p.num_threads = 3;
-    const auto b = ds3d::hdbscan(x, p);
-    EXPECT_EQ(a.labels, b.labels);
-    EXPECT_EQ(a.core_distances, b.core_distances);
   }
 }
 

@@ -154,7 +154,7 @@ class DynamicFeatureFilter {
   /// @param camera image size (boxes are clipped to it) and focal lengths (pixel → metre scale)
   /// @throws ds3d::InvalidArgument for a malformed box (names its index) or a bad camera.
   /// @note O(Σ_box n_b² ) for HDBSCAN's exact MST on the n_b keypoints of each box (Prim below
-  ///   4096 points) plus O(N · boxes) for the gating; about 1 ms for 1000 keypoints.
+  ///   3000 points) plus O(N · boxes) for the gating; about 1 ms for 1000 keypoints in a box.
   DynamicFilterResult filter(Eigen::Ref<const Keypoints3f> keypoints,
                              const std::vector<ImageBox>& boxes, const PinholeCamera& camera);
 

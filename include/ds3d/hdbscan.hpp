@@ -21,8 +21,9 @@
 ///
 /// Distances are sqrt(Σ_j (a_j − b_j)²) summed in dimension order without FMA contraction
 /// (on FMA targets an empty asm barrier on each product keeps it apart whatever -ffp-contract
-/// says; the runtime-dispatched AVX2 kernel enables no FMA), so core distances and MST weights
-/// match the reference bit for bit. Do not build with -ffast-math.
+/// says; the runtime-dispatched AVX2 / AVX-512F Prim steps put that barrier on every product
+/// unconditionally), so core distances and MST weights match the reference bit for bit. Do not
+/// build with -ffast-math.
 
 #include <Eigen/Core>
 
@@ -46,7 +47,7 @@ enum class ClusterSelection : std::uint8_t {
 /// Minimum-spanning-tree algorithm. All give the same MST weights (exact MST); under exactly
 /// equal mutual-reachability weights they may pick different (equally minimal) edges.
 enum class MstAlgorithm : std::uint8_t {
-  kAuto,     ///< Prim below 1500 points or above 8 dimensions, Borůvka otherwise
+  kAuto,     ///< Prim below 3000 points or above 8 dimensions, Borůvka otherwise
   kPrims,    ///< Prim on the implicit dense graph: O(n²·D) time, O(n·D) memory
   kBoruvka,  ///< KD-tree Borůvka: ~O(n log² n) for low D, O(n·(D + k)) memory
 };

@@ -9,6 +9,7 @@
 #include <nanoflann.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -135,10 +136,68 @@ class KnnTreeSmall {
     hi_.reserve(nodes_.capacity() * dim_);
     build(ds.data, 0, static_cast<std::uint32_t>(n_));
     pts_.resize(n_ * dim_);
+    stride_ = n_ + kLeafSize;  // padding: a leaf scan always reads kLeafSize lanes
+    soa_.assign(stride_ * dim_, 0.0);
     for (std::size_t s = 0; s < n_; ++s) {
-      std::copy_n(ds.data + static_cast<std::size_t>(order_[s]) * dim_, dim_,
-                  pts_.data() + s * dim_);
+      const double* src = ds.data + static_cast<std::size_t>(order_[s]) * dim_;
+      std::copy_n(src, dim_, pts_.data() + s * dim_);
+      for (std::size_t j = 0; j < dim_; ++j) soa_[j * stride_ + s] = src[j];
     }
+  }
+
+  /// Core distances only (no neighbour ids): core[i] = sqrt of the (k+1)-th smallest squared
+  /// distance from i, itself included. The value does not depend on how ties are ordered, so
+  /// the kept lists hold distances only and candidates equal to the current (k+1)-th are
+  /// skipped. Queries are batched per leaf: every query of a leaf first scans its own leaf,
+  /// which bounds the radius R of the whole leaf; the other leaves whose box lies within R of
+  /// this leaf's box are listed once, nearest first, and each query walks that list until the
+  /// box-to-box distance reaches its own (k+1)-th distance. Leaves are scanned as vectorisable
+  /// passes over per-dimension coordinates. All bounds are exact lower bounds (monotone
+  /// rounding), so the result is bitwise that of brute force with sq_dist_seq.
+  void run_core_only(std::size_t k, int num_threads, std::vector<double>& core) const {
+    const std::size_t kk = k + 1;
+    const std::size_t d = dim();
+    core.assign(n_, 0.0);
+    std::vector<std::uint32_t> leaves;
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+      if (nodes_[i].left < 0) leaves.push_back(static_cast<std::uint32_t>(i));
+    }
+    const std::size_t nl = leaves.size();
+    parallel_chunks(nl, std::size_t{16} * static_cast<std::size_t>(std::max(1, num_threads)),
+                    num_threads, [&](std::size_t begin, std::size_t end, std::size_t) {
+                      std::vector<double> bd;
+                      std::vector<double> worst;
+                      std::vector<std::pair<double, std::uint32_t>> cand;  // (box-to-box d², node)
+                      for (std::size_t li = begin; li < end; ++li) {
+                        const auto leaf = leaves[li];
+                        const Node& ln = nodes_[leaf];
+                        const std::size_t m = ln.end - ln.begin;
+                        bd.assign(m * kk, std::numeric_limits<double>::infinity());
+                        worst.assign(m, std::numeric_limits<double>::infinity());
+                        double r2 = 0.0;
+                        for (std::size_t qi = 0; qi < m; ++qi) {
+                          const double* q = pts_.data() + (ln.begin + qi) * d;
+                          scan_core(q, ln, kk, bd.data() + qi * kk, worst[qi]);
+                          r2 = std::max(r2, worst[qi]);
+                        }
+                        cand.clear();
+                        for (std::size_t lj = 0; lj < nl; ++lj) {
+                          if (lj == li) continue;
+                          const double bb = box_box_dist2(leaf, leaves[lj]);
+                          if (bb < r2) cand.emplace_back(bb, leaves[lj]);
+                        }
+                        std::sort(cand.begin(), cand.end());
+                        for (std::size_t qi = 0; qi < m; ++qi) {
+                          const double* q = pts_.data() + (ln.begin + qi) * d;
+                          for (const auto& [bb, node] : cand) {
+                            if (bb >= worst[qi]) break;  // this and all later leaves are too far
+                            if (box_dist2(q, node) >= worst[qi]) continue;
+                            scan_core(q, nodes_[node], kk, bd.data() + qi * kk, worst[qi]);
+                          }
+                          core[order_[ln.begin + qi]] = std::sqrt(worst[qi]);
+                        }
+                      }
+                    });
   }
 
   void run(std::size_t k, int num_threads, std::vector<double>& core,
@@ -289,9 +348,79 @@ class KnnTreeSmall {
     return cnt;
   }
 
+  // Squared distances from q to the kLeafSize tree positions from b (the padding of soa_ makes
+  // reading past a leaf's end safe; such lanes are masked by the caller): one fixed-length pass
+  // per dimension over contiguous coordinates, so the compiler vectorises and unrolls it; each
+  // lane sums its squares in dimension order exactly like sq_dist_seq.
+  void leaf_sq_dists(const double* q, std::uint32_t b, double* out) const {
+    const std::size_t d = dim();
+    {
+      const double* x = soa_.data() + b;
+      const double q0 = q[0];
+      for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+        const double g = x[t] - q0;
+        out[t] = no_contract(g * g);
+      }
+    }
+    for (std::size_t j = 1; j < d; ++j) {
+      const double* x = soa_.data() + j * stride_ + b;
+      const double qj = q[j];
+      for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+        const double g = x[t] - qj;
+        out[t] += no_contract(g * g);
+      }
+    }
+  }
+
+  // Offers the points of node nd to q's ascending list bd of the kk smallest squared distances
+  // (+inf while not full); worst = bd[kk - 1]. Branch-light, as these branches are unpredictable:
+  // a whole kLeafSize block of distances is compared with worst at once, and each hit is merged
+  // by bd[i] = min(bd[i], max(bd[i-1], x)), a branch-free sorted insertion.
+  void scan_core(const double* q, const Node& nd, std::size_t kk, double* bd, double& worst) const {
+    double buf[kLeafSize];
+    for (auto b = nd.begin; b < nd.end; b += kLeafSize) {
+      const std::uint32_t len = std::min(kLeafSize, nd.end - b);
+      leaf_sq_dists(q, b, buf);
+      std::uint32_t bits = 0;
+      for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+        bits |= static_cast<std::uint32_t>(buf[t] < worst) << t;
+      }
+      bits &= (1U << len) - 1U;
+      while (bits != 0U) {
+        const auto t = static_cast<std::uint32_t>(std::countr_zero(bits));
+        bits &= bits - 1U;
+        const double x = buf[t];
+        if (!(x < worst)) continue;  // cannot lower the (k+1)-th smallest
+        for (std::size_t i = kk - 1; i > 0; --i) bd[i] = std::min(bd[i], std::max(bd[i - 1], x));
+        bd[0] = std::min(bd[0], x);
+        worst = bd[kk - 1];
+      }
+    }
+  }
+
+  // Squared distance between the boxes of nodes a and b, summed like sq_dist_seq: a lower bound
+  // of every computed squared distance between a point of a and a point of b.
+  [[nodiscard]] double box_box_dist2(std::size_t a, std::size_t b) const {
+    const std::size_t d = dim();
+    const double* alo = lo_.data() + a * d;
+    const double* ahi = hi_.data() + a * d;
+    const double* blo = lo_.data() + b * d;
+    const double* bhi = hi_.data() + b * d;
+    double s = 0.0;
+    for (std::size_t j = 0; j < d; ++j) {
+      const double x = blo[j] - ahi[j];
+      const double y = alo[j] - bhi[j];
+      const double g = x > 0.0 ? x : (y > 0.0 ? y : 0.0);
+      s += no_contract(g * g);
+    }
+    return s;
+  }
+
   std::size_t n_, dim_;
   std::vector<std::uint32_t> order_;  // tree position -> point id
   std::vector<double> pts_;           // coordinates in tree order
+  std::vector<double> soa_;           // the same, per dimension: soa_[j * stride_ + s]
+  std::size_t stride_ = 0;            // n_ + kLeafSize (zero padding)
   std::vector<Node> nodes_;
   std::vector<double> lo_, hi_;  // node boxes
 };
@@ -299,7 +428,15 @@ class KnnTreeSmall {
 inline std::vector<double> knn_core_distances(const DenseRowsNd& ds, std::size_t k, int num_threads,
                                               std::vector<std::uint32_t>* neighbors = nullptr) {
   std::vector<double> core;
-  if (ds.n <= kSmallKnnMaxPoints) {
+  if (ds.n <= kSmallKnnMaxPoints && neighbors == nullptr) {
+    if (ds.dim == 3) {
+      KnnTreeSmall<3>(ds).run_core_only(k, num_threads, core);
+    } else if (ds.dim == 2) {
+      KnnTreeSmall<2>(ds).run_core_only(k, num_threads, core);
+    } else {
+      KnnTreeSmall<-1>(ds).run_core_only(k, num_threads, core);
+    }
+  } else if (ds.n <= kSmallKnnMaxPoints) {
     if (ds.dim == 3) {
       KnnTreeSmall<3>(ds).run(k, num_threads, core, neighbors);
     } else if (ds.dim == 2) {

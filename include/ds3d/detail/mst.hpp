@@ -145,6 +145,13 @@ inline std::size_t prim_step_3d_sse2(PrimSoA& s, const double* c, double cc2, do
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #define DS3D_HDBSCAN_AVX2 1
+// no_contract() for functions with a target attribute: target("avx512f") enables FMA inside the
+// function although the translation unit's __FMA__ is off, so the barrier must be unconditional.
+inline double no_contract_x86(double p) {
+  asm("" : "+v"(p));
+  return p;
+}
+
 // The same step with 4-wide AVX2, compiled for that target only and chosen at run time (no FMA
 // is enabled for this function, so products and sums stay separate roundings).
 __attribute__((target("avx2"))) inline std::size_t prim_step_3d_avx2(PrimSoA& s, const double* c,
@@ -197,7 +204,7 @@ __attribute__((target("avx2"))) inline std::size_t prim_step_3d_avx2(PrimSoA& s,
     double d2 = 0.0;
     for (std::size_t j = 0; j < 3; ++j) {
       const double diff = s.coords[j][t] - c[j];
-      d2 += no_contract(diff * diff);
+      d2 += no_contract_x86(diff * diff);
     }
     const double lo = cc2 > core2[t] ? cc2 : core2[t];
     const double m2 = d2 > lo ? d2 : lo;
@@ -211,6 +218,88 @@ __attribute__((target("avx2"))) inline std::size_t prim_step_3d_avx2(PrimSoA& s,
     }
   }
   return best_t < 0.0 ? s.m : static_cast<std::size_t>(best_t);
+}
+
+#define DS3D_HDBSCAN_AVX512 1
+// GCC 12's _mm512_max_pd uses _mm512_undefined_pd, which trips a false
+// -Wmaybe-uninitialized under -Werror.
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+inline __attribute__((target("avx512f"))) __m512d no_contract_v512(__m512d v) {
+  asm("" : "+v"(v));  // no FMA contraction across this product, whatever -ffp-contract says
+  return v;
+}
+
+// The same step, 8 lanes wide with AVX-512F (run-time dispatch; valgrind does not emulate it, so
+// callgrind counts show the AVX2 step). Lanes track only the smallest key; its first slot is
+// then found by a second, early-exit pass, so the tie rule (first index) is unchanged.
+__attribute__((target("avx512f"))) inline std::size_t prim_step_3d_avx512(PrimSoA& s,
+                                                                          const double* c,
+                                                                          double cc2, double cur) {
+  const double* x = s.coords[0].data();
+  const double* y = s.coords[1].data();
+  const double* z = s.coords[2].data();
+  double* key = s.key2.data();
+  double* from = s.from.data();
+  const double* core2 = s.core2.data();
+  const __m512d cx = _mm512_set1_pd(c[0]), cy = _mm512_set1_pd(c[1]), cz = _mm512_set1_pd(c[2]);
+  const __m512d vcc = _mm512_set1_pd(cc2), vcur = _mm512_set1_pd(cur);
+  __m512d vbest = _mm512_set1_pd(std::numeric_limits<double>::infinity());
+  std::size_t t = 0;
+  for (; t + 8 <= s.m; t += 8) {
+    const __m512d dx = _mm512_sub_pd(_mm512_loadu_pd(x + t), cx);
+    const __m512d dy = _mm512_sub_pd(_mm512_loadu_pd(y + t), cy);
+    const __m512d dz = _mm512_sub_pd(_mm512_loadu_pd(z + t), cz);
+    __m512d d2 = no_contract_v512(_mm512_mul_pd(dx, dx));
+    d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dy, dy)));
+    d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dz, dz)));
+    const __m512d m2 = _mm512_max_pd(_mm512_max_pd(_mm512_loadu_pd(core2 + t), vcc), d2);
+    const __m512d k = _mm512_loadu_pd(key + t);
+    const __mmask8 better = _mm512_cmp_pd_mask(m2, k, _CMP_LT_OQ);
+    _mm512_mask_storeu_pd(key + t, better, m2);
+    _mm512_mask_storeu_pd(from + t, better, vcur);
+    vbest = _mm512_min_pd(vbest, _mm512_mask_blend_pd(better, k, m2));
+  }
+  alignas(64) double lanes[8];
+  _mm512_store_pd(lanes, vbest);
+  double best = lanes[0];
+  for (int l = 1; l < 8; ++l) best = lanes[l] < best ? lanes[l] : best;
+  const std::size_t vec_end = t;
+  for (; t < s.m; ++t) {  // tail
+    double d2 = 0.0;
+    for (std::size_t j = 0; j < 3; ++j) {
+      const double diff = s.coords[j][t] - c[j];
+      d2 += no_contract_x86(diff * diff);
+    }
+    const double lo = cc2 > core2[t] ? cc2 : core2[t];
+    const double m2 = d2 > lo ? d2 : lo;
+    if (m2 < key[t]) {
+      key[t] = m2;
+      from[t] = cur;
+    }
+    if (key[t] < best) best = key[t];
+  }
+  if (!(best < std::numeric_limits<double>::infinity())) return s.m;
+  const __m512d vb = _mm512_set1_pd(best);
+  for (std::size_t u = 0; u < vec_end; u += 8) {  // first slot holding the smallest key
+    const auto hit =
+        static_cast<unsigned>(_mm512_cmp_pd_mask(_mm512_loadu_pd(key + u), vb, _CMP_EQ_OQ));
+    if (hit != 0U) return u + static_cast<std::size_t>(__builtin_ctz(hit));
+  }
+  for (std::size_t u = vec_end; u < s.m; ++u) {
+    if (key[u] == best) return u;
+  }
+  return s.m;
+}
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+
+inline bool cpu_has_avx512() {
+  static const bool has = __builtin_cpu_supports("avx512f") != 0;
+  return has;
 }
 
 inline bool cpu_has_avx2() {
@@ -245,7 +334,9 @@ inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::s
     const double cc2 = core[cur] * core[cur];
     std::size_t best = s.m;
 #if defined(DS3D_HDBSCAN_AVX2)
-    if (dim == 3 && cpu_has_avx2()) {
+    if (dim == 3 && cpu_has_avx512()) {
+      best = prim_step_3d_avx512(s, c, cc2, static_cast<double>(cur));
+    } else if (dim == 3 && cpu_has_avx2()) {
       best = prim_step_3d_avx2(s, c, cc2, static_cast<double>(cur));
     } else if (dim == 3) {
       best = prim_step_3d_sse2(s, c, cc2, static_cast<double>(cur));
