@@ -99,22 +99,23 @@ def project_box(box, R_up_cam, camera):
 
 
 def visibility(box, human_index, frame, R_up_cam, camera):
-    """(truncated, occluded_fraction) of one humanoid: truncated when its projected box leaves the
-    image or crosses the camera plane; occluded_fraction = share of the (clipped) projected box's
-    pixels covered by something else that lies nearer than the box's nearest corner."""
+    """(truncated, occluded_fraction) of one humanoid: truncated when its pixels touch the image
+    border or its box crosses the camera plane; occluded_fraction = share of the pixels of its
+    (clipped) projected box covered by something else that lies nearer than the box's nearest
+    corner (furniture or another person in front)."""
+    hid = frame["human_id"]
+    mine = hid == human_index + 1
+    truncated = bool(mine[0].any() or mine[-1].any() or mine[:, 0].any() or mine[:, -1].any())
     u, v, z = project_box(box, R_up_cam, camera)
-    h, w = frame["depth_true"].shape
+    h, w = hid.shape
     if np.any(z <= 0.05):
         return True, 0.0
-    u0, u1, v0, v1 = u.min(), u.max(), v.min(), v.max()
-    truncated = bool(u0 < 0 or v0 < 0 or u1 > w - 1 or v1 > h - 1)
-    iu0, iu1 = int(max(0, math.floor(u0))), int(min(w - 1, math.ceil(u1)))
-    iv0, iv1 = int(max(0, math.floor(v0))), int(min(h - 1, math.ceil(v1)))
+    iu0, iu1 = int(max(0, math.floor(u.min()))), int(min(w - 1, math.ceil(u.max())))
+    iv0, iv1 = int(max(0, math.floor(v.min()))), int(min(h - 1, math.ceil(v.max())))
     if iu1 < iu0 or iv1 < iv0:
         return True, 1.0
     d = frame["depth_true"][iv0:iv1 + 1, iu0:iu1 + 1]
-    hid = frame["human_id"][iv0:iv1 + 1, iu0:iu1 + 1]
-    occ = (d > 0) & (d < z.min()) & (hid != human_index + 1)
+    occ = (d > 0) & (d < z.min()) & (hid[iv0:iv1 + 1, iu0:iu1 + 1] != human_index + 1)
     return truncated, float(occ.mean())
 
 
@@ -236,22 +237,28 @@ def write_shard(path, frames, info):
     bo = np.cumsum([0] + [len(f["boxes"]) for f in frames]).astype(np.int64)
     cat = (lambda k, shape, dt: np.concatenate([f[k] for f in frames]).astype(dt)
            if frames else np.zeros(shape, dt))
-    tmp = str(path) + ".tmp.npz"
-    np.savez_compressed(
-        tmp, point_offsets=po, box_offsets=bo, centre_offsets=co, query_offsets=qo,
-        centre_idx=cat("centre_idx", (0,), np.int16), group=cat("group", (0, 32), np.int16),
-        query_idx=cat("query_idx", (0,), np.int16), nn_idx=cat("nn_idx", (0, 3), np.int16),
-        nn_w=cat("nn_w", (0, 3), np.float32),
-        points=cat("points", (0, 3), np.float32), pixels=cat("pixels", (0, 2), np.int16),
-        label=cat("label", (0,), np.int8), part=cat("part", (0, 3), np.float16),
-        human=cat("human", (0,), np.uint8), boxes=cat("boxes", (0, 7), np.float32),
-        box_meta=cat("box_meta", (0, 6), np.float32),
-        R_up_cam=np.stack([f["R_up_cam"] for f in frames]) if frames else np.zeros((0, 3, 3), np.float32),
-        up_source=np.array([f["up_source"] for f in frames], np.int8),
-        true_up_error_deg=np.array([f["true_up_error_deg"] for f in frames], np.float32),
-        frame_info=np.array([json.dumps(f.get("info", {})) for f in frames]),
-        info=np.array(json.dumps(info)))
+    tmp = str(path) + ".tmp"  # a file object keeps numpy from appending ".npz"
+    with open(tmp, "wb") as fh:
+        np.savez_compressed(
+            fh, point_offsets=po, box_offsets=bo, centre_offsets=co, query_offsets=qo,
+            centre_idx=cat("centre_idx", (0,), np.int16), group=cat("group", (0, 32), np.int16),
+            query_idx=cat("query_idx", (0,), np.int16), nn_idx=cat("nn_idx", (0, 3), np.int16),
+            nn_w=cat("nn_w", (0, 3), np.float32),
+            points=cat("points", (0, 3), np.float32), pixels=cat("pixels", (0, 2), np.int16),
+            label=cat("label", (0,), np.int8), part=cat("part", (0, 3), np.float16),
+            human=cat("human", (0,), np.uint8), boxes=cat("boxes", (0, 7), np.float32),
+            box_meta=cat("box_meta", (0, 6), np.float32),
+            R_up_cam=np.stack([f["R_up_cam"] for f in frames]) if frames else np.zeros((0, 3, 3), np.float32),
+            up_source=np.array([f["up_source"] for f in frames], np.int8),
+            true_up_error_deg=np.array([f["true_up_error_deg"] for f in frames], np.float32),
+            frame_info=np.array([json.dumps(f.get("info", {})) for f in frames]),
+            info=np.array(json.dumps(info)))
     os.replace(tmp, path)
+
+
+def shard_files(folder):
+    """The complete shards of a folder (files being written end in .tmp and are skipped)."""
+    return sorted(f for f in pathlib.Path(folder).glob("*.npz") if ".tmp" not in f.name)
 
 
 class HtxDataset:
@@ -265,7 +272,7 @@ class HtxDataset:
 
     def __init__(self, folder):
         folder = pathlib.Path(folder)
-        files = sorted(folder.glob("*.npz"))
+        files = shard_files(folder)
         if not files:
             raise ValueError(f"ds3d.htx.data.HtxDataset: no .npz shards in {str(folder)!r}")
         self.shards = []

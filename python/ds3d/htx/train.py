@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from .config import make_config
-from .data import HtxDataset
+from .data import HtxDataset, shard_files
 from .losses import SUNRGBD_WEIGHTS, detection_loss, part_loss
 from .model import HTx, fourier_embedding
 from .targets import box_targets
@@ -121,8 +121,10 @@ def batched_forward(model, samples, with_parts=True):
 
 
 def batch_loss(model, samples, weights):
-    """Mean over the scenes of seed eq. 1 (all decoder layers) + eq. 3 (weighted by
-    weights['part_fg'/'part_loc']) and the mean components."""
+    """Mean over the scenes of seed eq. 1 (all decoder layers) plus seed eq. 3 on all points of
+    the batch at once (weighted by weights['part_fg'/'part_loc']): Part-A2 normalises by the
+    batch's number of foreground points (OpenPCDet's pos_normalizer), so a scene without people
+    does not divide its background loss by 1. Returns (loss, mean components)."""
     with_parts = weights["part_fg"] > 0 or weights["part_loc"] > 0
     outs = batched_forward(model, samples, with_parts)
     total, comps = 0.0, {}
@@ -130,13 +132,16 @@ def batch_loss(model, samples, weights):
         tgt = box_targets(s["boxes"], s["classes"], out["scene_min"].detach().numpy(),
                           out["scene_max"].detach().numpy(), model.config["num_angle_bins"])
         loss, parts = detection_loss(out["layers"], tgt, weights)
-        if with_parts:
-            pl, pp = part_loss(out["part_logits"], s["label"].astype(np.int64), s["part"], weights)
-            loss = loss + pl
-            parts.update(pp)
         total = total + loss / len(samples)
         for k, v in parts.items():
             comps[k] = comps.get(k, 0.0) + v / len(samples)
+    if with_parts:
+        logits = torch.cat([o["part_logits"] for o in outs])
+        label = np.concatenate([s["label"] for s in samples]).astype(np.int64)
+        part = np.concatenate([s["part"] for s in samples])
+        pl, pp = part_loss(logits, label, part, weights)
+        total = total + pl
+        comps.update(pp)
     return total, comps
 
 
@@ -164,7 +169,11 @@ class Trainer:
         self.weights = dict(SUNRGBD_WEIGHTS, part_fg=args.part_weight, part_loc=args.part_weight)
         self.order = np.zeros(0, np.int64)
         self.cursor = 0
+        self.set_dataset(dataset)
+
+    def set_dataset(self, dataset):
         # batched_forward needs equal token counts: scenes with fewer points than tokens are skipped
+        self.ds = dataset
         t = self.model.config["num_centres"]
         self.usable = np.array([i for i in range(len(dataset)) if dataset.num_centres(i) == t], np.int64)
         if len(self.usable) == 0:
@@ -174,6 +183,8 @@ class Trainer:
         out = []
         while len(out) < n:
             if self.cursor >= len(self.order):
+                if self.args.reload_data and len(shard_files(self.args.data)) != len(self.ds.shards):
+                    self.set_dataset(HtxDataset(self.args.data))  # new shards appeared: new epoch uses them
                 self.order = self.usable[self.rng.permutation(len(self.usable))]
                 self.cursor = 0
             out.append(int(self.order[self.cursor]))
@@ -287,10 +298,14 @@ def parse_args(argv=None):
     p.add_argument("--part-weight", type=float, default=1.0, help="weight of seed eq. 3 (0: ablation)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads")
+    p.add_argument("--stop-step", type=int, default=0,
+                   help="stop at this step although the schedule runs to --steps (equal-budget ablations)")
     p.add_argument("--max-minutes", type=float, default=0.0, help="stop (and checkpoint) after this; 0 = no limit")
     p.add_argument("--ckpt-minutes", type=float, default=5.0)
     p.add_argument("--snapshot-steps", default="", help="comma list: keep checkpoint_<step>.pt copies")
     p.add_argument("--log-every", type=int, default=10)
+    p.add_argument("--reload-data", action="store_true",
+                   help="at each epoch start, reload --data if shards were added (train while generating)")
     p.add_argument("--no-resume", action="store_true", help="ignore an existing checkpoint.pt")
     a = p.parse_args(argv)
     for name in ("steps", "batch", "threads", "log_every"):
@@ -299,8 +314,8 @@ def parse_args(argv=None):
     for name in ("lr", "clip"):
         if not getattr(a, name) > 0:
             p.error(f"--{name} must be > 0 (got {getattr(a, name)})")
-    if a.part_weight < 0 or a.max_minutes < 0 or a.warmup < 0:
-        p.error("--part-weight, --max-minutes and --warmup must be >= 0")
+    if a.part_weight < 0 or a.max_minutes < 0 or a.warmup < 0 or a.stop_step < 0:
+        p.error("--part-weight, --max-minutes, --stop-step and --warmup must be >= 0")
     return a
 
 
@@ -321,7 +336,8 @@ def main(argv=None, stream=sys.stderr):
     last_ck = t0
     log = open(out / "log.jsonl", "a", encoding="utf-8")
     try:
-        while tr.step < a.steps:
+        end = min(a.steps, a.stop_step) if a.stop_step > 0 else a.steps
+        while tr.step < end:
             rec = tr.train_step()
             rec["time_s"] = round(time.time() - t0, 2)
             log.write(json.dumps(rec) + "\n")
@@ -333,7 +349,7 @@ def main(argv=None, stream=sys.stderr):
             if tr.step in snaps:
                 tr.save(out / f"checkpoint_{tr.step}.pt")
             timeout = a.max_minutes > 0 and time.time() - t0 > 60 * a.max_minutes
-            if time.time() - last_ck > 60 * a.ckpt_minutes or tr.step == a.steps or timeout:
+            if time.time() - last_ck > 60 * a.ckpt_minutes or tr.step == end or timeout:
                 tr.save(ck)
                 plot_loss(tr.history, out / "loss.png")
                 last_ck = time.time()
