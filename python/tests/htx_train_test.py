@@ -2,6 +2,7 @@
 # SPDX-FileCopyrightText: 2026 ds3d authors
 """HTx trainer (python/ds3d/htx/train.py): batched forward = model forward, a few steps lower the
 loss, and resuming from a checkpoint reproduces an uninterrupted run exactly."""
+import json
 import math
 
 import numpy as np
@@ -93,10 +94,14 @@ def test_resume_gives_the_same_state(tiny, tmp_path):
 def test_checkpoint_model_exports(tiny, tmp_path):
     train.main(_args(tiny, tmp_path, 1))
     model = train.load_checkpoint_model(tmp_path / "checkpoint.pt")
-    from ds3d.htx import export, reference_detect, read_safetensors
-    export(model, tmp_path / "w.safetensors")
+    from ds3d.htx import reference_detect, read_safetensors
+    train.main(["export", "--checkpoint", str(tmp_path / "checkpoint.pt"), "--out", str(tmp_path / "w.safetensors"),
+                "--threshold", "0.35"])
     tensors, meta = read_safetensors(tmp_path / "w.safetensors")
     assert meta["format"] == "ds3d-htx" and all(np.isfinite(v).all() for v in tensors.values())
+    assert json.loads(meta["config"])["score_threshold"] == pytest.approx(0.35)
+    with pytest.raises(ValueError, match="threshold"):
+        train.export_checkpoint(tmp_path / "checkpoint.pt", tmp_path / "x.safetensors", 1.5)
     s = data.HtxDataset(tiny)[0]
     out = reference_detect(model, s["points"])
     assert out.shape[1] == 9 and np.isfinite(out).all()

@@ -243,6 +243,20 @@ def load_checkpoint_model(path):
     return model.eval()
 
 
+def export_checkpoint(checkpoint, out, threshold):
+    """Writes the weights file of a checkpoint (BatchNorm folded, ds3d.htx.export) with the
+    deployment objectness threshold ``threshold`` in [0, 1) in its config. Returns the model."""
+    from .weights import export
+
+    if not 0 <= threshold < 1:
+        raise ValueError(f"ds3d.htx.train.export_checkpoint: threshold must be in [0, 1) (got {threshold})")
+    model = load_checkpoint_model(checkpoint)
+    model.config["score_threshold"] = float(threshold)
+    pathlib.Path(out).parent.mkdir(parents=True, exist_ok=True)
+    export(model, out)
+    return model
+
+
 def plot_loss(history, path):
     """Loss curve PNG: total loss and main components (moving average over 50 steps)."""
     import matplotlib
@@ -320,7 +334,17 @@ def parse_args(argv=None):
 
 
 def main(argv=None, stream=sys.stderr):
-    """Runs (or resumes) a training run; returns the Trainer."""
+    """Runs (or resumes) a training run; returns the Trainer. ``export --checkpoint C --out W
+    --threshold T`` instead writes the weights file of a checkpoint (export_checkpoint)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["export"]:
+        p = argparse.ArgumentParser(prog="python3 -m ds3d.htx.train export")
+        p.add_argument("--checkpoint", required=True)
+        p.add_argument("--out", required=True, help="weights file (.safetensors)")
+        p.add_argument("--threshold", type=float, required=True, help="deployment objectness threshold")
+        e = p.parse_args(argv[1:])
+        export_checkpoint(e.checkpoint, e.out, e.threshold)
+        return None
     a = parse_args(argv)
     torch.set_num_threads(a.threads)
     out = pathlib.Path(a.out)
@@ -332,7 +356,7 @@ def main(argv=None, stream=sys.stderr):
         tr.load_state_dict(torch.load(ck, map_location="cpu"))
         stream.write(f"resumed from {ck} at step {tr.step}\n")
     snaps = {int(s) for s in a.snapshot_steps.split(",") if s.strip()}
-    t0 = time.time()
+    t0, c0 = time.time(), time.process_time()
     last_ck = t0
     log = open(out / "log.jsonl", "a", encoding="utf-8")
     try:
@@ -340,6 +364,7 @@ def main(argv=None, stream=sys.stderr):
         while tr.step < end:
             rec = tr.train_step()
             rec["time_s"] = round(time.time() - t0, 2)
+            rec["cpu_s"] = round(time.process_time() - c0, 2)  # this process's CPU time (shared machine)
             log.write(json.dumps(rec) + "\n")
             if not all(math.isfinite(v) for v in (rec["loss"], rec["grad_norm"])):
                 raise FloatingPointError(f"ds3d.htx.train: non-finite loss at step {tr.step}: {rec}")
