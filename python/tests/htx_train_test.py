@@ -50,6 +50,17 @@ def test_mirror_matches_recomputed_targets(tiny):
     assert np.all(np.abs(m["boxes"][:, 6]) <= math.pi + 1e-6)
 
 
+def test_train_mode_freezes_batchnorm(tiny):
+    ds = data.HtxDataset(tiny)
+    model = train.train_mode(train.new_model("fast", seed=2, head_dropout=0.0))
+    s = [ds[i] for i in range(len(ds)) if ds.num_centres(i) == model.config["num_centres"]][:1]
+    with torch.no_grad():
+        a = train.batched_forward(model, s)[0]["layers"][-1]["objectness"]
+        b = train.batched_forward(model.eval(), s)[0]["layers"][-1]["objectness"]
+    torch.testing.assert_close(a, b)  # training computes the function that is exported
+    assert all(not m.training for m in model.modules() if isinstance(m, torch.nn.BatchNorm1d))
+
+
 def test_lr_schedule():
     assert train.lr_at(0, 100, 1e-3, 10) == pytest.approx(1e-4)
     assert train.lr_at(10, 100, 1e-3, 10) == pytest.approx(1e-3)
@@ -66,8 +77,8 @@ def test_few_steps_lower_the_loss(tiny, tmp_path):
     model = train.new_model("fast", seed=3, head_dropout=0.0)  # the run's initial model
     probe = [ds[i] for i in range(len(ds)) if ds.num_centres(i) == model.config["num_centres"]][:2]
 
-    def loss_of(m):  # train mode (batch statistics, as the optimiser saw); no dropout is active
-        m.train()
+    def loss_of(m):  # the trainer's mode (frozen BatchNorm); no dropout is active
+        train.train_mode(m)
         with torch.no_grad():
             return float(train.batch_loss(m, probe, dict(train.SUNRGBD_WEIGHTS))[0])
 
