@@ -44,14 +44,16 @@ def new_model(profile="fast", seed=0, dropout=0.0, head_dropout=0.1):
 
 
 def train_mode(model):
-    """Training mode with every BatchNorm frozen at its initial statistics (mean 0, variance 1),
-    i.e. a learned affine map. Batch statistics would be computed over one scene's 64 queries in
-    the heads, where some channels have almost no spread: the network then learns to amplify
-    differences that the running averages used at inference do not reproduce (observed: every
-    query at objectness 1 in eval mode after 100 steps). Frozen BN trains exactly the function
-    that is exported (BN folded) and run in C++."""
+    """Training mode with the BatchNorms of the five query heads frozen at their initial
+    statistics (mean 0, variance 1, i.e. learned affine maps). In the heads, batch statistics
+    come from one scene's 64 queries, where some channels have almost no spread: the network then
+    learns to amplify differences that the running averages used at inference do not reproduce
+    (observed: every query at objectness 1 in eval mode after 100 steps). The set-abstraction,
+    projection and part-head BatchNorms see thousands of rows per batch and stay in training mode
+    (freezing them too leaves the point features tiny and the decoder collapses to one box).
+    """
     model.train()
-    for m in model.modules():
+    for m in model.mlp_heads.modules():
         if isinstance(m, torch.nn.BatchNorm1d):
             m.eval()
     return model
