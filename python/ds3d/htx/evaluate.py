@@ -298,7 +298,8 @@ def _read_png16(path):
 
 
 def evaluate_tum_masks(det, folder, camera_preset="tum3"):
-    """Share of masked person pixels inside predicted boxes on frames with depth and a mask."""
+    """Share of masked person pixels inside predicted boxes on frames with depth and a mask
+    (DynaSLAM's mask images from its repository: value 0 marks a person, 1 the static scene)."""
     import ds3d
     from PIL import Image
 
@@ -313,7 +314,7 @@ def evaluate_tum_masks(det, folder, camera_preset="tum3"):
         if abs(float(mp.stem) - t) > 0.02:
             continue
         depth = _read_png16(dp)
-        mask = np.asarray(Image.open(mp).convert("L")) > 0
+        mask = np.asarray(Image.open(mp).convert("L")) == 0  # DynaSLAM's masks: 0 = person, 1 = static
         pts, R, _, _ = upright_input(depth, camera)
         boxes = det.detect(pts)
         h, w = depth.shape
