@@ -61,3 +61,26 @@ def test_safetensors_model_round_trip(tmp_path):
     b = reference_detect(back, pts, return_details=True)[1]
     for k in ("center", "size", "objectness", "part_logits"):
         np.testing.assert_allclose(a[k], b[k], atol=1e-4)
+
+
+def test_shipped_weights_find_synthetic_people():
+    import pathlib
+
+    import ds3d
+    from ds3d.htx import data
+
+    path = pathlib.Path(__file__).resolve().parents[2] / "models" / "htx_lite_fast.safetensors"
+    if not path.exists() or not hasattr(ds3d, "SparseDetector") or not hasattr(ds3d, "synth"):
+        pytest.skip("no shipped weights or ds3d built without the detector/generator")
+    det = ds3d.SparseDetector.load(str(path))
+    assert 0 < det.config.score_threshold < 1
+    cam = ds3d.camera_preset("tum_ros")
+    scene = ds3d.synth.Scene("walking_static", frames=300, seed=12_000_123, humans=2)  # a test-range seed
+    hits = total = 0
+    for i in (0, 100, 200):
+        s = data.make_frame(scene.render(i), cam, np.random.default_rng(0))
+        out = np.asarray(det.detect(s["points"]))
+        assert np.isfinite(out).all() and out.shape[1] == 9
+        hits += int(evaluate.matched(out, s["boxes"].astype(np.float64), 0.25).sum())
+        total += len(s["boxes"])
+    assert total > 0 and hits >= 1
