@@ -26,29 +26,6 @@ inline void VoxelGridParams::validate() const {
 
 namespace detail {
 
-/// Prefetches the storage of point i of clouds stored as contiguous rows (row-major Eigen
-/// matrices and maps, std::vector of fixed-size points); a no-op for other cloud types. The row
-/// pass of voxel_grid reads points in key order, i.e. at random: without prefetching it waits on
-/// one cache miss at a time.
-template <class C>
-inline void prefetch_point([[maybe_unused]] const C& c, [[maybe_unused]] std::size_t i) {
-#if defined(__GNUC__)
-  if constexpr (requires {
-                  c.data();
-                  c.outerStride();
-                  requires static_cast<bool>(C::IsRowMajor);
-                }) {
-    __builtin_prefetch(c.data() + static_cast<std::ptrdiff_t>(i) * c.outerStride());
-  } else if constexpr (requires {
-                         c.data();
-                         c.size();
-                         typename C::value_type;
-                       }) {
-    __builtin_prefetch(c.data() + i);
-  }
-#endif
-}
-
 /// Centroids from a general VoxelSort (fallback for keys beyond ±2^20 or > 32 key bits).
 template <PointCloud C>
 VoxelGridResult voxel_grid_from_sort(const C& cloud, const VoxelGridParams& params, int threads,
@@ -264,7 +241,6 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
   };
   const std::uint64_t zmask = (std::uint64_t{1} << b[2]) - 1;
   const std::uint64_t ymask = (std::uint64_t{1} << b[1]) - 1;
-  constexpr std::size_t kAhead = 16;  // points prefetched ahead of the row pass
   // Fills the rows of chunk c from offset[c] on; returns {rows written, points dropped}.
   auto fill_chunk = [&](std::size_t c) {
     std::size_t row = offset[c];
@@ -276,9 +252,6 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
     for (std::size_t lo = bound[c], hi = 0; lo < bound[c + 1]; lo = hi) {
       const std::uint64_t key = sorted[lo] >> 32U;
       for (hi = lo + 1; hi < bound[c + 1] && (sorted[hi] >> 32U) == key; ++hi) {
-      }
-      for (std::size_t k = lo + kAhead; k < hi + kAhead && k < m; ++k) {
-        detail::prefetch_point(cloud, static_cast<std::uint32_t>(sorted[k]));
       }
       const std::size_t cnt = hi - lo;
       if (cnt < min_pts) {
