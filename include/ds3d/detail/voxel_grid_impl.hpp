@@ -213,9 +213,10 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
   // from its first row on (sums in input order: identical for any thread count).
   const std::uint32_t min_pts = params.min_points;
   const auto chunks = static_cast<std::size_t>(std::max(1, threads));
-  ws.runs.assign(2 * chunks + 2, 0);
+  ws.runs.assign(3 * chunks + 2, 0);
   std::size_t* bound = ws.runs.data();                // chunk c covers [bound[c], bound[c + 1])
   std::size_t* offset = ws.runs.data() + chunks + 1;  // first output row of chunk c
+  std::size_t* chunk_dropped = ws.runs.data() + 2 * chunks + 2;  // points dropped by chunk c
   for (std::size_t c = 0; c < chunks; ++c) {
     std::size_t s = detail::chunk_range(m, chunks, c).first;
     while (s > 0 && s < m && (sorted[s] >> 32U) == (sorted[s - 1] >> 32U)) ++s;
@@ -302,13 +303,11 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
       ++row;
     }
   };
-  std::vector<std::size_t> dropped_per_chunk(chunks, 0);
   detail::parallel_chunks(chunks, chunks, threads,
                           [&](std::size_t cb, std::size_t ce, std::size_t) {
-                            for (std::size_t c = cb; c < ce; ++c)
-                              dropped_per_chunk[c] = count_chunk(c);
+                            for (std::size_t c = cb; c < ce; ++c) chunk_dropped[c] = count_chunk(c);
                           });
-  for (const std::size_t d : dropped_per_chunk) r.num_dropped += d;
+  for (std::size_t c = 0; c < chunks; ++c) r.num_dropped += chunk_dropped[c];
   offset[0] = 0;
   for (std::size_t c = 0; c < chunks; ++c) offset[c + 1] += offset[c];
   const std::size_t rows = offset[chunks];
