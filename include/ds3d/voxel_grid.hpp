@@ -67,7 +67,7 @@ struct VoxelGridWorkspace {
   std::unique_ptr<std::uint64_t[]> tmp;    ///< radix-sort ping-pong buffer (not zero-filled)
   std::size_t capacity = 0;                ///< words of each of words / tmp
   std::vector<std::uint32_t> hist;         ///< radix histograms
-  std::vector<std::size_t> runs;           ///< per-chunk run boundaries and output offsets
+  std::vector<std::size_t> runs;           ///< per-chunk bounds, output offsets, dropped counts
 };
 
 /// Voxel-grid down-sampling: one centroid per occupied voxel of an origin-anchored grid.

@@ -3,6 +3,7 @@
 #pragma once
 // Implementation of ds3d::voxel_grid (included by voxel_grid.hpp). Not API.
 
+#include <cstring>
 #include <limits>
 
 #include "ds3d/detail/parallel.hpp"
@@ -103,10 +104,11 @@ VoxelGridResult voxel_grid_from_sort(const C& cloud, const VoxelGridParams& para
   return r;
 }
 
-/// Stable LSD radix sort of a[0, m) by bits [32, 32 + bits) using `tmp` (m words) and the
-/// histograms already counted in `hist` (passes × 2^digit); returns the buffer holding the result.
+/// Stable LSD radix sort of a[0, m) by `passes` digits of `digit` bits from bit `base` up, using
+/// `tmp` (m words) and the histograms already counted in `hist` (passes × 2^digit); returns the
+/// buffer holding the result.
 inline std::uint64_t* radix_sort_pairs(std::uint64_t* a, std::uint64_t* tmp, std::size_t m,
-                                       std::uint32_t* hist, int passes, int digit) {
+                                       std::uint32_t* hist, int passes, int digit, int base) {
   const std::size_t buckets = std::size_t{1} << digit;
   const std::uint64_t mask = buckets - 1;
   for (int p = 0; p < passes; ++p) {
@@ -117,7 +119,7 @@ inline std::uint64_t* radix_sort_pairs(std::uint64_t* a, std::uint64_t* tmp, std
       c[b] = sum;
       sum += t;
     }
-    const int shift = 32 + p * digit;
+    const int shift = base + p * digit;
     for (std::size_t k = 0; k < m; ++k) {
       const std::uint64_t w = a[k];
       tmp[c[(w >> shift) & mask]++] = w;
@@ -143,32 +145,33 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
   const std::size_t n = cloud::size(cloud);
   DS3D_CHECK(n < std::numeric_limits<std::uint32_t>::max(), kFn,
              ": clouds are limited to 2^32 - 1 points (got ", n, ")");
+  VoxelGridResult r;
+  if (n == 0) return r;
   const std::array<double, 3> leaf{params.leaf_size.dx, params.leaf_size.dy, params.leaf_size.dz};
   if (ws.capacity < n) {  // default-initialised: no zero-fill of buffers written before read
     ws.words = std::make_unique_for_overwrite<std::uint64_t[]>(n);
     ws.tmp = std::make_unique_for_overwrite<std::uint64_t[]>(n);
     ws.capacity = n;
   }
-  // Pass 1 (parallel): exact packed key of every point, per-axis key bounds.
+  // Pass 1 (parallel, SSE2): exact packed key of every point, per-axis key bounds.
   const detail::PackedKeyInfo info =
       detail::packed_voxel_keys(cloud, leaf, params.on_non_finite, threads, kFn, ws.words.get());
+  r.num_non_finite = info.non_finite;
   const std::size_t m = n - info.non_finite;
+  if (m == 0) return r;
   int bits = 64;
   std::array<int, 3> b{};
-  if (!info.wide && m > 0) {
+  if (!info.wide) {
     for (std::size_t d = 0; d < 3; ++d) {
       b[d] = detail::bits_for(static_cast<std::uint64_t>(info.hi[d] - info.lo[d]));
     }
     bits = b[0] + b[1] + b[2];
   }
-  if (m > 0 && bits > 32) {  // rare: general path (int64 triples, keys recomputed)
+  if (bits > 32) {  // rare: general path (int64 triples or 64-bit keys, keys recomputed)
     return detail::voxel_grid_from_sort(
         cloud, params, threads,
         detail::sort_by_voxel(cloud, leaf, params.on_non_finite, threads, kFn));
   }
-  VoxelGridResult r;
-  r.num_non_finite = info.non_finite;
-  if (m == 0) return r;
 
   // Pass 2 (serial, streaming): compact each key to its used bits (fields relative to their
   // minima, lexicographic order kept), pair it with the index, count all radix histograms.
@@ -202,30 +205,34 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
       ++hist[2 * buckets + ((key >> (2 * digit)) & dmask)];
     }
   }
-  // Pass 3: stable radix sort over the used bits only (1 to 3 passes).
-  const std::uint64_t* sorted = detail::radix_sort_pairs(a, ws.tmp.get(), m, hist, passes, digit);
+  // Pass 3: stable radix sort over the used bits only (0 to 3 passes).
+  const std::uint64_t* sorted =
+      detail::radix_sort_pairs(a, ws.tmp.get(), m, hist, passes, digit, 32);
 
-  // Pass 4: voxels are runs of equal keys. Chunks start at run boundaries; each chunk counts its
-  // kept voxels, then fills its rows (sums in input order: identical for any thread count).
+  // Pass 4: voxels are runs of equal keys. Chunks start at voxel boundaries; each fills its rows
+  // from its first row on (sums in input order: identical for any thread count).
   const std::uint32_t min_pts = params.min_points;
   const auto chunks = static_cast<std::size_t>(std::max(1, threads));
-  ws.runs.assign(2 * chunks + 2, 0);
+  ws.runs.assign(3 * chunks + 2, 0);
   std::size_t* bound = ws.runs.data();                // chunk c covers [bound[c], bound[c + 1])
   std::size_t* offset = ws.runs.data() + chunks + 1;  // first output row of chunk c
+  std::size_t* chunk_dropped = ws.runs.data() + 2 * chunks + 2;  // points dropped by chunk c
   for (std::size_t c = 0; c < chunks; ++c) {
     std::size_t s = detail::chunk_range(m, chunks, c).first;
     while (s > 0 && s < m && (sorted[s] >> 32U) == (sorted[s - 1] >> 32U)) ++s;
     bound[c] = std::max(s, c == 0 ? 0 : bound[c - 1]);
   }
   bound[chunks] = m;
-  std::vector<std::size_t> dropped_per_chunk;  // only touched when min_points > 1
+  // Rows and dropped points of chunk c, so that the outputs are allocated once at their exact
+  // size (allocating for every point and trimming made glibc return and re-fault the pages: 10x
+  // the page faults per call).
   auto count_chunk = [&](std::size_t c) {
     std::size_t kept = 0;
     std::size_t dropped = 0;
     for (std::size_t lo = bound[c], hi = 0; lo < bound[c + 1]; lo = hi) {
       const std::uint64_t key = sorted[lo] >> 32U;
-      hi = lo + 1;
-      while (hi < bound[c + 1] && (sorted[hi] >> 32U) == key) ++hi;
+      for (hi = lo + 1; hi < bound[c + 1] && (sorted[hi] >> 32U) == key; ++hi) {
+      }
       if (hi - lo >= min_pts) {
         ++kept;
       } else {
@@ -237,71 +244,70 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
   };
   const std::uint64_t zmask = (std::uint64_t{1} << b[2]) - 1;
   const std::uint64_t ymask = (std::uint64_t{1} << b[1]) - 1;
+  // Fills the rows of chunk c from offset[c] on.
   auto fill_chunk = [&](std::size_t c) {
-    auto row = static_cast<Eigen::Index>(offset[c]);
+    std::size_t row = offset[c];
+    std::int64_t* out_key = r.keys.data();
+    float* out_c = r.centroids.data();
+    std::uint32_t* out_n = r.counts.data();
+    std::uint32_t* out_rep = r.representative.data();
     for (std::size_t lo = bound[c], hi = 0; lo < bound[c + 1]; lo = hi) {
       const std::uint64_t key = sorted[lo] >> 32U;
-      hi = lo + 1;
-      while (hi < bound[c + 1] && (sorted[hi] >> 32U) == key) ++hi;
-      const auto cnt = static_cast<std::uint32_t>(hi - lo);
+      for (hi = lo + 1; hi < bound[c + 1] && (sorted[hi] >> 32U) == key; ++hi) {
+      }
+      const std::size_t cnt = hi - lo;
       if (cnt < min_pts) continue;
-      r.keys(row, 0) = static_cast<std::int64_t>(key >> sx) + info.lo[0];
-      r.keys(row, 1) = static_cast<std::int64_t>((key >> sy) & ymask) + info.lo[1];
-      r.keys(row, 2) = static_cast<std::int64_t>(key & zmask) + info.lo[2];
-      const auto j = static_cast<std::size_t>(row);
-      r.counts[j] = cnt;
+      out_key[3 * row] = static_cast<std::int64_t>(key >> sx) + info.lo[0];
+      out_key[3 * row + 1] = static_cast<std::int64_t>((key >> sy) & ymask) + info.lo[1];
+      out_key[3 * row + 2] = static_cast<std::int64_t>(key & zmask) + info.lo[2];
+      out_n[row] = static_cast<std::uint32_t>(cnt);
       const auto first = static_cast<std::uint32_t>(sorted[lo]);
       if (cnt == 1) {
-        r.centroids.row(row) = cloud::point(cloud, first).transpose();
-        r.representative[j] = first;
+        const Eigen::Vector3f p = cloud::point(cloud, first);
+        out_c[3 * row] = p.x();
+        out_c[3 * row + 1] = p.y();
+        out_c[3 * row + 2] = p.z();
+        out_rep[row] = first;
         ++row;
         continue;
       }
-      double sx_ = 0;
-      double sy_ = 0;
-      double sz_ = 0;
+      double sum_x = 0;
+      double sum_y = 0;
+      double sum_z = 0;
       for (std::size_t k = lo; k < hi; ++k) {
         const Eigen::Vector3f p = cloud::point(cloud, static_cast<std::uint32_t>(sorted[k]));
-        sx_ += p.x();
-        sy_ += p.y();
-        sz_ += p.z();
+        sum_x += p.x();
+        sum_y += p.y();
+        sum_z += p.z();
       }
-      const double inv = 1.0 / static_cast<double>(cnt);
-      const double mx = sx_ * inv;
-      const double my = sy_ * inv;
-      const double mz = sz_ * inv;
+      const double inv_cnt = 1.0 / static_cast<double>(cnt);
+      const double mx = sum_x * inv_cnt;
+      const double my = sum_y * inv_cnt;
+      const double mz = sum_z * inv_cnt;
       std::uint32_t best = first;
       double best_d = std::numeric_limits<double>::infinity();
       for (std::size_t k = lo; k < hi; ++k) {
-        const auto idx = static_cast<std::uint32_t>(sorted[k]);
-        const Eigen::Vector3f p = cloud::point(cloud, idx);
+        const auto i = static_cast<std::uint32_t>(sorted[k]);
+        const Eigen::Vector3f p = cloud::point(cloud, i);
         const double dx = p.x() - mx;
         const double dy = p.y() - my;
         const double dz = p.z() - mz;
         const double d = dx * dx + dy * dy + dz * dz;
-        if (d < best_d) {  // strict: the first (lowest input index) wins ties
-          best_d = d;
-          best = idx;
-        }
+        best = d < best_d ? i : best;  // strict: the first (lowest input index) wins ties
+        best_d = d < best_d ? d : best_d;
       }
-      r.centroids(row, 0) = static_cast<float>(mx);
-      r.centroids(row, 1) = static_cast<float>(my);
-      r.centroids(row, 2) = static_cast<float>(mz);
-      r.representative[j] = best;
+      out_c[3 * row] = static_cast<float>(mx);
+      out_c[3 * row + 1] = static_cast<float>(my);
+      out_c[3 * row + 2] = static_cast<float>(mz);
+      out_rep[row] = best;
       ++row;
     }
   };
-  if (chunks == 1) {
-    r.num_dropped = count_chunk(0);
-  } else {
-    dropped_per_chunk.assign(chunks, 0);
-    detail::parallel_chunks(chunks, chunks, threads,
-                            [&](std::size_t cb, std::size_t ce, std::size_t) {
-                              for (std::size_t c = cb; c < ce; ++c)
-                                dropped_per_chunk[c] = count_chunk(c);
-                            });
-    for (const std::size_t d : dropped_per_chunk) r.num_dropped += d;
-  }
+  detail::parallel_chunks(chunks, chunks, threads,
+                          [&](std::size_t cb, std::size_t ce, std::size_t) {
+                            for (std::size_t c = cb; c < ce; ++c) chunk_dropped[c] = count_chunk(c);
+                          });
+  for (std::size_t c = 0; c < chunks; ++c) r.num_dropped += chunk_dropped[c];
   offset[0] = 0;
   for (std::size_t c = 0; c < chunks; ++c) offset[c + 1] += offset[c];
   const std::size_t rows = offset[chunks];
@@ -309,14 +315,10 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
   r.keys.resize(static_cast<Eigen::Index>(rows), 3);
   r.counts.resize(rows);
   r.representative.resize(rows);
-  if (chunks == 1) {
-    fill_chunk(0);
-  } else {
-    detail::parallel_chunks(chunks, chunks, threads,
-                            [&](std::size_t cb, std::size_t ce, std::size_t) {
-                              for (std::size_t c = cb; c < ce; ++c) fill_chunk(c);
-                            });
-  }
+  detail::parallel_chunks(chunks, chunks, threads,
+                          [&](std::size_t cb, std::size_t ce, std::size_t) {
+                            for (std::size_t c = cb; c < ce; ++c) fill_chunk(c);
+                          });
   return r;
 }
 

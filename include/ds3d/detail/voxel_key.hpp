@@ -24,6 +24,10 @@
 #include <numeric>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "ds3d/cloud.hpp"
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/errors.hpp"
@@ -159,100 +163,261 @@ struct PackedKeyInfo {
   std::array<std::int64_t, 3> hi{-kHalf, -kHalf, -kHalf};       ///< per-axis maximum key
   std::size_t non_finite = 0;                                   ///< points marked kNonFiniteKey
   bool wide = false;  ///< some |key| >= 2^20: the packed words are not valid, use int64 keys
+
+  /// Merges the bounds and counts of another chunk.
+  void merge(const PackedKeyInfo& o) {
+    non_finite += o.non_finite;
+    wide = wide || o.wide;
+    for (std::size_t d = 0; d < 3; ++d) {
+      lo[d] = std::min(lo[d], o.lo[d]);
+      hi[d] = std::max(hi[d], o.hi[d]);
+    }
+  }
 };
 
 /// Marks a non-finite point in the packed key array.
 inline constexpr std::uint64_t kNonFiniteKey = ~std::uint64_t{0};
 
-/// One pass over the cloud: out[i] = the voxel key of point i packed as three 21-bit fields
-/// (offset 2^20, order lexicographic on (ix, iy, iz)) or kNonFiniteKey; returns the per-axis key
-/// bounds. The keys are exactly floor(v / leaf) of the spec (see fast_voxel_index). Runs on
-/// `num_threads`; throws like sort_by_voxel. `out` must hold cloud::size(c) words.
+/// Packs three keys, each in [-2^20, 2^20), as 21-bit fields (offset 2^20) whose integer order is
+/// lexicographic on (ix, iy, iz).
+[[nodiscard]] inline std::uint64_t pack_key(std::int64_t k0, std::int64_t k1, std::int64_t k2) {
+  constexpr std::int64_t kHalf = PackedKeyInfo::kHalf;
+  return (static_cast<std::uint64_t>(k0 + kHalf) & 0x1FFFFFU) << 42U |
+         (static_cast<std::uint64_t>(k1 + kHalf) & 0x1FFFFFU) << 21U |
+         (static_cast<std::uint64_t>(k2 + kHalf) & 0x1FFFFFU);
+}
+
+/// Points per block of the key kernel: the block's buffers stay in L1.
+inline constexpr std::size_t kKeyBlock = 256;
+
+/// Per-chunk state of the key kernel: one block of coordinates and packed words, and the float
+/// bounds of the blocks that held no non-finite point (floor is monotonic, so the keys of these
+/// bounds are the bounds of the keys).
+struct KeyKernel {
+  alignas(64) float x[kKeyBlock];
+  alignas(64) float y[kKeyBlock];
+  alignas(64) float z[kKeyBlock];
+  alignas(64) std::uint64_t word[kKeyBlock + 1];  ///< packed key or kNonFiniteKey; +1 sentinel
+  std::array<float, 3> fmin{std::numeric_limits<float>::infinity(),
+                            std::numeric_limits<float>::infinity(),
+                            std::numeric_limits<float>::infinity()};
+  std::array<float, 3> fmax{-std::numeric_limits<float>::infinity(),
+                            -std::numeric_limits<float>::infinity(),
+                            -std::numeric_limits<float>::infinity()};
+  PackedKeyInfo info;  ///< bounds of the keys of the other blocks, counts, wide flag
+};
+
+/// Packed keys of points [b, e) of `c` (e - b <= kKeyBlock) into k.word[0, e - b).
+///
+/// The keys are exactly floor(v / leaf) of the spec. The branch-free (vectorisable) loop computes
+/// q = v * (1/leaf) + 2^20 in double and truncates it: q is within 2^-31 of the exact quotient
+/// + 2^20 (two roundings of at most 2^-32 and 2^-33 for |key| < 2^20), so its floor is the exact
+/// floor unless q is within 2^-31 of an integer. Points within 2^-28 of a voxel boundary, out of
+/// range or non-finite are redone one by one (fast_voxel_index: division when needed).
+template <PointCloud C>
+void packed_keys_block(const C& c, std::size_t b, std::size_t e, const std::array<double, 3>& leaf,
+                       const std::array<double, 3>& inv, NonFinite on_non_finite,
+                       const char* function, KeyKernel& k) {
+  constexpr double kOff = 1048576.0;  // 2^20: a field is key + 2^20
+  constexpr double kLo = 1.0;         // fields in [1, 2^21 - 3] on the fast path
+  constexpr double kHi = 2097150.0;
+  constexpr double kTol = 0x1p-28;
+  constexpr std::int64_t kHalf = PackedKeyInfo::kHalf;
+  const std::size_t len = e - b;
+  for (std::size_t j = 0; j < len; ++j) {  // structure of arrays
+    const Eigen::Vector3f p = cloud::point(c, b + j);
+    k.x[j] = p.x();
+    k.y[j] = p.y();
+    k.z[j] = p.z();
+  }
+  alignas(64) std::uint8_t bad[kKeyBlock / 4];  // bit j % 4 of bad[j / 4]: redo point j
+  unsigned num_bad = 0;
+  std::size_t j0 = 0;
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  std::array<float, 3> mn{kInf, kInf, kInf};  // bounds of this block (valid if all finite)
+  std::array<float, 3> mx{-kInf, -kInf, -kInf};
+#if defined(__SSE2__)
+  // Four points per step (SSE2 is part of x86-64). cvttpd2dq returns INT_MIN for NaN, inf and
+  // out-of-range values, which then fail the field range test; a negative quotient truncates
+  // upwards, so its remainder is <= 0 and fails the tolerance test: both are redone below.
+  {
+    const __m128d off = _mm_set1_pd(kOff);
+    const __m128d tol = _mm_set1_pd(kTol);
+    const __m128d one_tol = _mm_set1_pd(1.0 - kTol);
+    const __m128i zero = _mm_setzero_si128();
+    const __m128i lim = _mm_set1_epi32(static_cast<std::int32_t>(kHi));
+    auto axis = [&](const float* src, __m128d inv_leaf, __m128i& t, __m128& good, __m128& lo,
+                    __m128& hi) {
+      const __m128 v = _mm_load_ps(src);
+      lo = _mm_min_ps(v, lo);  // a NaN in v keeps lo (second operand); inf: block discarded
+      hi = _mm_max_ps(v, hi);
+      const __m128d q_lo = _mm_add_pd(_mm_mul_pd(_mm_cvtps_pd(v), inv_leaf), off);
+      const __m128d q_hi = _mm_add_pd(_mm_mul_pd(_mm_cvtps_pd(_mm_movehl_ps(v, v)), inv_leaf), off);
+      const __m128i t_lo = _mm_cvttpd_epi32(q_lo);
+      const __m128i t_hi = _mm_cvttpd_epi32(q_hi);
+      const __m128d r_lo = _mm_sub_pd(q_lo, _mm_cvtepi32_pd(t_lo));
+      const __m128d r_hi = _mm_sub_pd(q_hi, _mm_cvtepi32_pd(t_hi));
+      const __m128d g_lo = _mm_and_pd(_mm_cmpgt_pd(r_lo, tol), _mm_cmplt_pd(r_lo, one_tol));
+      const __m128d g_hi = _mm_and_pd(_mm_cmpgt_pd(r_hi, tol), _mm_cmplt_pd(r_hi, one_tol));
+      t = _mm_unpacklo_epi64(t_lo, t_hi);
+      const __m128i in_range = _mm_and_si128(_mm_cmpgt_epi32(t, zero), _mm_cmplt_epi32(t, lim));
+      good = _mm_and_ps(_mm_shuffle_ps(_mm_castpd_ps(g_lo), _mm_castpd_ps(g_hi), 0x88),
+                        _mm_castsi128_ps(in_range));
+    };
+    const __m128d v0 = _mm_set1_pd(inv[0]);
+    const __m128d v1 = _mm_set1_pd(inv[1]);
+    const __m128d v2 = _mm_set1_pd(inv[2]);
+    __m128 lo0 = _mm_set1_ps(kInf), lo1 = lo0, lo2 = lo0;
+    __m128 hi0 = _mm_set1_ps(-kInf), hi1 = hi0, hi2 = hi0;
+    for (; j0 + 4 <= len; j0 += 4) {
+      __m128i t0, t1, t2;
+      __m128 g0, g1, g2;
+      axis(k.x + j0, v0, t0, g0, lo0, hi0);
+      axis(k.y + j0, v1, t1, g1, lo1, hi1);
+      axis(k.z + j0, v2, t2, g2, lo2, hi2);
+      const auto m = static_cast<unsigned>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(g0, g1), g2)));
+      bad[j0 / 4] = static_cast<std::uint8_t>(m ^ 0xFU);
+      num_bad |= m ^ 0xFU;
+      const __m128i w_lo =
+          _mm_or_si128(_mm_or_si128(_mm_slli_epi64(_mm_unpacklo_epi32(t0, zero), 42),
+                                    _mm_slli_epi64(_mm_unpacklo_epi32(t1, zero), 21)),
+                       _mm_unpacklo_epi32(t2, zero));
+      const __m128i w_hi =
+          _mm_or_si128(_mm_or_si128(_mm_slli_epi64(_mm_unpackhi_epi32(t0, zero), 42),
+                                    _mm_slli_epi64(_mm_unpackhi_epi32(t1, zero), 21)),
+                       _mm_unpackhi_epi32(t2, zero));
+      _mm_store_si128(reinterpret_cast<__m128i*>(k.word + j0), w_lo);
+      _mm_store_si128(reinterpret_cast<__m128i*>(k.word + j0 + 2), w_hi);
+    }
+    alignas(16) float l[3][4];
+    alignas(16) float h[3][4];
+    _mm_store_ps(l[0], lo0);
+    _mm_store_ps(l[1], lo1);
+    _mm_store_ps(l[2], lo2);
+    _mm_store_ps(h[0], hi0);
+    _mm_store_ps(h[1], hi1);
+    _mm_store_ps(h[2], hi2);
+    for (std::size_t d = 0; d < 3; ++d) {
+      mn[d] = std::min({l[d][0], l[d][1], l[d][2], l[d][3]});
+      mx[d] = std::max({h[d][0], h[d][1], h[d][2], h[d][3]});
+    }
+  }
+#endif
+  for (std::size_t j = j0; j < len; ++j) {  // portable path; the tail of a block on x86-64
+    double q0 = static_cast<double>(k.x[j]) * inv[0] + kOff;
+    double q1 = static_cast<double>(k.y[j]) * inv[1] + kOff;
+    double q2 = static_cast<double>(k.z[j]) * inv[2] + kOff;
+    const bool ok = q0 > kLo && q0 < kHi && q1 > kLo && q1 < kHi && q2 > kLo && q2 < kHi;
+    q0 = ok ? q0 : 2.5;  // keep the conversions defined (NaN, inf, out of range)
+    q1 = ok ? q1 : 2.5;
+    q2 = ok ? q2 : 2.5;
+    const auto t0 = static_cast<std::int32_t>(q0);  // truncation = floor (q > 0)
+    const auto t1 = static_cast<std::int32_t>(q1);
+    const auto t2 = static_cast<std::int32_t>(q2);
+    const double r0 = q0 - static_cast<double>(t0);
+    const double r1 = q1 - static_cast<double>(t1);
+    const double r2 = q2 - static_cast<double>(t2);
+    const bool good = ok && r0 > kTol && r0 < 1.0 - kTol && r1 > kTol && r1 < 1.0 - kTol &&
+                      r2 > kTol && r2 < 1.0 - kTol;
+    k.word[j] = static_cast<std::uint64_t>(static_cast<std::uint32_t>(t0)) << 42U |
+                static_cast<std::uint64_t>(static_cast<std::uint32_t>(t1)) << 21U |
+                static_cast<std::uint64_t>(static_cast<std::uint32_t>(t2));
+    mn = {std::min(mn[0], k.x[j]), std::min(mn[1], k.y[j]), std::min(mn[2], k.z[j])};
+    mx = {std::max(mx[0], k.x[j]), std::max(mx[1], k.y[j]), std::max(mx[2], k.z[j])};
+    if (j % 4 == 0) bad[j / 4] = 0;
+    if (!good) {
+      bad[j / 4] = static_cast<std::uint8_t>(bad[j / 4] | (1U << (j % 4)));
+      num_bad = 1;
+    }
+  }
+  bool has_non_finite = false;
+  if (num_bad != 0) {
+    for (std::size_t j = 0; j < len; ++j) {
+      if (((bad[j / 4] >> (j % 4)) & 1U) == 0) continue;
+      const Eigen::Vector3f p(k.x[j], k.y[j], k.z[j]);
+      if (!cloud::is_finite(p)) {
+        DS3D_CHECK(on_non_finite != NonFinite::kThrow, function, ": point ", b + j,
+                   " is not finite (", p.x(), ", ", p.y(), ", ", p.z(), ")");
+        ++k.info.non_finite;
+        has_non_finite = true;
+        k.word[j] = kNonFiniteKey;
+        continue;
+      }
+      const std::int64_t k0 = fast_voxel_index(p.x(), leaf[0], inv[0], function, "x");
+      const std::int64_t k1 = fast_voxel_index(p.y(), leaf[1], inv[1], function, "y");
+      const std::int64_t k2 = fast_voxel_index(p.z(), leaf[2], inv[2], function, "z");
+      k.info.wide = k.info.wide || k0 < -kHalf || k0 >= kHalf || k1 < -kHalf || k1 >= kHalf ||
+                    k2 < -kHalf || k2 >= kHalf;
+      k.word[j] = pack_key(k0, k1, k2);
+    }
+  }
+  if (!has_non_finite) {  // common case: float bounds (a NaN may have been skipped: see above)
+    for (std::size_t d = 0; d < 3; ++d) {
+      k.fmin[d] = std::min(k.fmin[d], mn[d]);
+      k.fmax[d] = std::max(k.fmax[d], mx[d]);
+    }
+    return;
+  }
+  for (std::size_t j = 0; j < len; ++j) {
+    const std::uint64_t w = k.word[j];
+    if (w == kNonFiniteKey) continue;
+    const std::array<std::int64_t, 3> key{static_cast<std::int64_t>(w >> 42U) - kHalf,
+                                          static_cast<std::int64_t>((w >> 21U) & 0x1FFFFFU) - kHalf,
+                                          static_cast<std::int64_t>(w & 0x1FFFFFU) - kHalf};
+    for (std::size_t d = 0; d < 3; ++d) {
+      k.info.lo[d] = std::min(k.info.lo[d], key[d]);
+      k.info.hi[d] = std::max(k.info.hi[d], key[d]);
+    }
+  }
+}
+
+/// Final bounds and counts of a chunk processed by packed_keys_block.
+[[nodiscard]] inline PackedKeyInfo finish_key_kernel(const KeyKernel& k,
+                                                     const std::array<double, 3>& leaf,
+                                                     const std::array<double, 3>& inv,
+                                                     const char* function) {
+  PackedKeyInfo info = k.info;
+  if (!info.wide && k.fmin[0] <= k.fmax[0]) {  // some block without non-finite points
+    const std::array<const char*, 3> axis{"x", "y", "z"};
+    for (std::size_t d = 0; d < 3; ++d) {
+      info.lo[d] =
+          std::min(info.lo[d], fast_voxel_index(k.fmin[d], leaf[d], inv[d], function, axis[d]));
+      info.hi[d] =
+          std::max(info.hi[d], fast_voxel_index(k.fmax[d], leaf[d], inv[d], function, axis[d]));
+    }
+  }
+  return info;
+}
+
+/// One pass over the cloud: out[i] = the voxel key of point i packed by pack_key, or
+/// kNonFiniteKey; returns the per-axis key bounds. The keys are exactly floor(v / leaf) of the
+/// spec (see packed_keys_block). Runs on `num_threads`; throws like sort_by_voxel. `out` must
+/// hold cloud::size(c) words.
 template <PointCloud C>
 [[nodiscard]] PackedKeyInfo packed_voxel_keys(const C& c, const std::array<double, 3>& leaf,
                                               NonFinite on_non_finite, int num_threads,
                                               const char* function, std::uint64_t* packed) {
   const std::size_t n = cloud::size(c);
-  constexpr std::int64_t kHalf = PackedKeyInfo::kHalf;
-  constexpr std::uint64_t kNonFinite = kNonFiniteKey;
   const std::array<double, 3> inv{1.0 / leaf[0], 1.0 / leaf[1], 1.0 / leaf[2]};
-  using ChunkInfo = PackedKeyInfo;
-  auto body = [&](std::size_t b, std::size_t e, ChunkInfo& out) {
-    ChunkInfo ci;
-    // Hot loop: keys of points well inside ±2^20 voxels and not within 2^-28 of a voxel
-    // boundary (where x * (1/dx) and x / dx could floor differently) are computed branch-free;
-    // everything else (non-finite, wide, near-boundary) takes the exact per-point path.
-    constexpr double kRange = 1048575.0;  // 2^20 - 1
-    constexpr double kTol = 0x1p-28;      // >= 2^-49 |q| + 2^-60 for |q| < 2^20
-    std::int64_t lo0 = ci.lo[0], lo1 = ci.lo[1], lo2 = ci.lo[2];
-    std::int64_t hi0 = ci.hi[0], hi1 = ci.hi[1], hi2 = ci.hi[2];
-    for (std::size_t i = b; i < e; ++i) {
-      const Eigen::Vector3f p = cloud::point(c, i);
-      const double q0 = static_cast<double>(p.x()) * inv[0];
-      const double q1 = static_cast<double>(p.y()) * inv[1];
-      const double q2 = static_cast<double>(p.z()) * inv[2];
-      std::int64_t k0 = 0;
-      std::int64_t k1 = 0;
-      std::int64_t k2 = 0;
-      bool fast = std::abs(q0) < kRange && std::abs(q1) < kRange && std::abs(q2) < kRange;
-      if (fast) {
-        const auto t0 = static_cast<std::int64_t>(q0);
-        const auto t1 = static_cast<std::int64_t>(q1);
-        const auto t2 = static_cast<std::int64_t>(q2);
-        k0 = t0 - (q0 < static_cast<double>(t0) ? 1 : 0);
-        k1 = t1 - (q1 < static_cast<double>(t1) ? 1 : 0);
-        k2 = t2 - (q2 < static_cast<double>(t2) ? 1 : 0);
-        const double f0 = q0 - static_cast<double>(k0);
-        const double f1 = q1 - static_cast<double>(k1);
-        const double f2 = q2 - static_cast<double>(k2);
-        fast = (f0 > kTol) & (f0 < 1.0 - kTol) & (f1 > kTol) & (f1 < 1.0 - kTol) & (f2 > kTol) &
-               (f2 < 1.0 - kTol);
-      }
-      if (!fast) {
-        if (!cloud::is_finite(p)) {
-          DS3D_CHECK(on_non_finite != NonFinite::kThrow, function, ": point ", i,
-                     " is not finite (", p.x(), ", ", p.y(), ", ", p.z(), ")");
-          ++ci.non_finite;
-          packed[i] = kNonFinite;
-          continue;
-        }
-        k0 = fast_voxel_index(p.x(), leaf[0], inv[0], function, "x");
-        k1 = fast_voxel_index(p.y(), leaf[1], inv[1], function, "y");
-        k2 = fast_voxel_index(p.z(), leaf[2], inv[2], function, "z");
-        ci.wide = ci.wide || k0 < -kHalf || k0 >= kHalf || k1 < -kHalf || k1 >= kHalf ||
-                  k2 < -kHalf || k2 >= kHalf;
-      }
-      lo0 = std::min(lo0, k0);
-      lo1 = std::min(lo1, k1);
-      lo2 = std::min(lo2, k2);
-      hi0 = std::max(hi0, k0);
-      hi1 = std::max(hi1, k1);
-      hi2 = std::max(hi2, k2);
-      packed[i] = (static_cast<std::uint64_t>(k0 + kHalf) & 0x1FFFFFU) << 42U |
-                  (static_cast<std::uint64_t>(k1 + kHalf) & 0x1FFFFFU) << 21U |
-                  (static_cast<std::uint64_t>(k2 + kHalf) & 0x1FFFFFU);
+  auto body = [&](std::size_t b, std::size_t e, PackedKeyInfo& out) {
+    KeyKernel k;  // ~4 KB on the stack: no allocation
+    for (std::size_t s = b; s < e; s += kKeyBlock) {
+      const std::size_t t = std::min(e, s + kKeyBlock);
+      packed_keys_block(c, s, t, leaf, inv, on_non_finite, function, k);
+      std::copy(k.word, k.word + (t - s), packed + s);
     }
-    ci.lo = {lo0, lo1, lo2};
-    ci.hi = {hi0, hi1, hi2};
-    out = ci;
+    out = finish_key_kernel(k, leaf, inv, function);
   };
-  ChunkInfo all;
+  PackedKeyInfo all;
   const auto chunks = static_cast<std::size_t>(std::max(1, num_threads));
-  if (chunks == 1) {  // no allocation on the single-thread path
+  if (chunks == 1) {
     body(0, n, all);
     return all;
   }
-  std::vector<ChunkInfo> info(chunks);
+  std::vector<PackedKeyInfo> info(chunks);
   parallel_chunks(n, chunks, num_threads,
                   [&](std::size_t b, std::size_t e, std::size_t ch) { body(b, e, info[ch]); });
-  for (const auto& ci : info) {
-    all.non_finite += ci.non_finite;
-    all.wide = all.wide || ci.wide;
-    for (std::size_t d = 0; d < 3; ++d) {
-      all.lo[d] = std::min(all.lo[d], ci.lo[d]);
-      all.hi[d] = std::max(all.hi[d], ci.hi[d]);
-    }
-  }
+  for (const auto& ci : info) all.merge(ci);
   return all;
 }
 
