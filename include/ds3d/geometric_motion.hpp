@@ -6,26 +6,34 @@
 /// (ds3d::slam; OpenCV). It finds moving objects from multi-view geometry alone.
 ///
 /// Per frame (the source keeps its own short history of frames):
-///  1. ORB features of the frame (its own extractor, so it runs beside the front-end's); matches
-///     to a reference frame `reference_gap` frames back (mutual best Hamming matches);
-///  2. robust pose: PnP-RANSAC (EPnP minimal sets, then iterative refinement on the inliers) of
-///     the reference's 3-D points against the current pixels, excluding points inside objects
-///     that are already known to move;
-///  3. per matched keypoint, its reprojection residual (χ² test at 2 dof, σ scaled by the pyramid
-///     level as in ORB-SLAM2) and its depth residual (3σ of the sensor noise σ(z) = k·z²,
-///     Khoshelham & Elberink 2012, floored by min_depth_residual) flag moving keypoints;
-///  4. depth-warp consistency: pixels of a grid of the current depth image are warped into the
-///     reference frame; where the reference saw (in a small neighbourhood, to tolerate edges)
-///     only surfaces farther than the warped point, the space the point occupies now was empty
-///     then, so the point moved in (the converse case, now-hidden background, is ignored);
-///  5. HDBSCAN on the flagged points in (u, v, z) (pixels scaled to metres at the median depth)
-///     groups them into objects; clusters must be dense (median core distance within
-///     dense_factor warp-grid steps at their depth: scattered mismatches are not objects); each
-///     cluster becomes a 3-D box (camera-frame axis-aligned hull of its back-projected points,
-///     grown by box_margin) held in the world frame;
-///  6. a cluster becomes an object only when evidence repeats at the same place (overlapping
-///     world boxes) in consecutive frames, or confirms a held object: a one-frame pose glitch
-///     does not remove the static scene;
+///  1. ORB features of the frame (its own extractor, so it runs beside the front-end's), mutually
+///     matched (with Lowe's ratio test) to a reference frame `reference_gap` frames back (the
+///     oldest one with a trusted pose);
+///  2. robust pose: PnP-RANSAC (EPnP minimal sets, then Levenberg-Marquardt on the inliers) of
+///     the reference's 3-D points against the current pixels, leaving out points inside objects
+///     already known to move. The pose is *trusted* only with at least `min_pose_inliers`
+///     inliers forming at least `min_inlier_ratio` of the matches; otherwise nothing new is
+///     flagged (an uncertain pose flags nothing rather than everything);
+///  3. per matched keypoint with depth on both sides, a 3-dof χ² test of its residual
+///     (Δu, Δv, Δz) against the static prediction, with a per-keypoint covariance: pixel noise
+///     σ_px·(pyramid scale) in both views, where σ_px is estimated per frame from the median
+///     residual of all matches (so blur and rolling shutter raise it), plus depth noise
+///     σ(z) = depth_noise·z² (Khoshelham & Elberink 2012) inflated by the depth spread in a small
+///     window, propagated through the projection (Jacobian of (u, v, z) with respect to the
+///     reference depth). A keypoint moves when χ² > `moving_chi2` (χ²₃ at 99.9 %). Keypoints
+///     on a depth discontinuity in either view (window spread above max(min_depth_residual,
+///     3√2·σ(z))) are not tested: silhouette corners and T-junctions are not fixed 3-D points;
+///  4. HDBSCAN groups the moving keypoints in (u, v, z) (pixels scaled to metres at the median
+///     depth). A cluster becomes an object candidate only if it is compact (≤ `max_object_size`)
+///     and has support: at least `min_support` of all tested keypoints inside its image rectangle
+///     and depth range are moving. Scattered false alarms on static structure fail this test;
+///  5. depth-warp consistency: grid pixels of the current depth image around each candidate are
+///     warped into the reference; a pixel in front of every surface the reference saw in a
+///     window (the space was empty then: the object moved in) extends the object. Windows with
+///     no reference depth (missing depth) and pixels behind the reference surface (occlusion,
+///     disocclusion) are never evidence;
+///  6. a candidate becomes an object only when it repeats at the same world place (overlapping
+///     world boxes) in consecutive frames, or confirms a held object;
 ///  7. an object is reported for `hold_frames` frames after its last motion evidence, so that a
 ///     person who stops for a while after moving is still removed.
 /// Objects are reported as DynamicObjects::boxes_3d (camera frame), so that the masker can gate
@@ -46,45 +54,66 @@
 
 namespace ds3d::slam {
 
-/// Parameters of GeometricMotionSource. Thresholds are statistical (χ², σ(z)) or metric.
+/// Parameters of GeometricMotionSource. Thresholds are statistical (χ², σ(z)) or metric; none is
+/// tuned to a recorded sequence.
 struct GeometricMotionParams {
-  int num_features = 800;           ///< ORB features of the source's own extractor, > 0
-  int reference_gap = 4;            ///< frames between the current and the reference frame, >= 1
-  int max_match_distance = 50;      ///< Hamming distance of accepted matches, in [1, 256]
-  int ransac_iterations = 200;      ///< PnP-RANSAC iterations, >= 1
-  double chi2_2dof = 5.991;         ///< χ²(2 dof, 95%) for the pose inlier test, > 0
-  double moving_chi2_factor = 9.0;  ///< a keypoint moves if its χ² exceeds this × chi2_2dof, >= 1
-  float depth_noise = 1.5e-3F;      ///< σ(z) = depth_noise·z² [1/m], >= 0
-  float min_depth_residual = 0.10F;  ///< floor of the depth residual threshold [m], > 0
-  int warp_stride = 6;               ///< grid step of the depth-warp check [px], >= 1
-  int warp_window = 3;               ///< half-size of the reference min-depth window [px], >= 0
-  double max_depth = 6.0;            ///< depths beyond this are ignored [m], > 0
-  int min_cluster_size = 15;         ///< HDBSCAN min_cluster_size for objects, >= 2
-  int min_samples = 5;               ///< HDBSCAN min_samples, >= 1
-  double dense_factor = 3.0;  ///< clusters need median core distance <= this × grid step, > 0
+  int num_features = 800;            ///< ORB features of the source's own extractor, > 0
+  int reference_gap = 2;             ///< frames between the current and the reference frame, >= 1
+  int max_match_distance = 50;       ///< Hamming distance of accepted matches, in [1, 256]
+  float match_ratio = 0.8F;          ///< best / second-best Hamming distance below this, (0, 1]
+  int ransac_iterations = 200;       ///< PnP-RANSAC iterations, >= 1
+  double chi2_2dof = 5.991;          ///< χ²(2 dof, 95%) for the pose inlier test, > 0
+  double moving_chi2 = 16.27;        ///< χ²(3 dof, 99.9%): a keypoint moves above this, > 0
+  double min_pixel_sigma = 1.0;      ///< floor of the per-frame pixel noise σ_px [px], > 0
+  float depth_noise = 1.5e-3F;       ///< σ(z) = depth_noise·z² [1/m], >= 0
+  float min_depth_residual = 0.05F;  ///< depth residuals below this never flag (σ(z) floor =
+                                     ///< this / 3) [m], > 0
+  int depth_window = 2;           ///< half-size of the depth-spread window at keypoints [px], >= 0
+  double min_inlier_ratio = 0.4;  ///< trusted pose: inliers / matches at least this, in [0, 1]
+  int min_pose_inliers = 30;      ///< trusted pose: at least this many inliers, >= 6
+  int warp_stride = 6;            ///< grid step of the depth-warp check [px], >= 1
+  int warp_window = 3;            ///< half-size of the reference min-depth window [px], >= 0
+  double max_depth = 6.0;         ///< depths beyond this are ignored [m], > 0
+  int min_cluster_size = 6;       ///< HDBSCAN min_cluster_size (moving keypoints), >= 2
+  int min_samples = 3;            ///< HDBSCAN min_samples, >= 1
+  double min_support = 0.5;       ///< moving / tested keypoints in a cluster's region, in (0, 1]
   double max_object_size =
-      2.5;                    ///< clusters larger than this in x, y or z are not objects [m], > 0
-  float box_margin = 0.2F;    ///< object boxes grow by this in x, y and z [m], >= 0
-  int hold_frames = 90;       ///< frames an object is kept after its last motion, >= 0
-  int min_pose_inliers = 20;  ///< fewer PnP inliers: no motion test this frame, >= 6
-  void validate() const;      ///< throws ds3d::InvalidArgument naming the bad field
+      2.2;                   ///< clusters larger than this in x, y or z are not objects [m], > 0
+  float box_margin = 0.15F;  ///< object boxes grow by this in x, y and z [m], >= 0
+  int hold_frames = 90;      ///< frames an object is kept after its last motion, >= 0
+  void validate() const;     ///< throws ds3d::InvalidArgument naming the bad field
 };
 
 /// Statistics of the last detect() call.
 struct GeometricMotionStats {
-  bool pose_ok = false;          ///< a reference was available and the pose had enough inliers
-  int num_matches = 0;           ///< descriptor matches with the reference
+  bool pose_ok = false;          ///< a reference was available and the pose is trusted
+  int num_matches = 0;           ///< descriptor matches with the reference (reference depth)
   int num_pose_inliers = 0;      ///< PnP-RANSAC inliers
-  int num_moving_keypoints = 0;  ///< matched keypoints flagged by residuals
+  int num_tested = 0;            ///< keypoints with depth in both views that were χ²-tested
+  int num_moving_keypoints = 0;  ///< tested keypoints above moving_chi2
   int num_moving_pixels = 0;     ///< grid pixels flagged by the depth-warp check
-  int num_new_objects = 0;       ///< clusters found this frame
+  int num_candidates = 0;        ///< clusters that passed the size and support tests
+  int num_new_objects = 0;       ///< candidates confirmed this frame
   int num_objects = 0;           ///< objects reported (new + held)
+  double pixel_sigma = 0;        ///< σ_px used this frame [px]
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< the source's own pose
+};
+
+/// One χ²-tested keypoint of the last detect() call (for diagnostics and visualisation).
+struct TestedKeypoint {
+  float u = 0, v = 0;      ///< raw pixel of the current frame
+  float z = 0;             ///< current depth [m]
+  float chi2 = 0;          ///< χ² (3 dof) of its residual against the static prediction
+  bool moving = false;     ///< chi2 > moving_chi2
+  int cluster = -1;        ///< HDBSCAN cluster among the moving keypoints, -1 = none / not moving
+  bool candidate = false;  ///< its cluster passed the size and support tests
 };
 
 /// The `geometric` dynamic-object source (see the file comment for the method).
 /// @note Deterministic for a given frame sequence. Keeps state across frames: call detect() in
-///       frame order (the SLAM pipeline does); not thread-safe.
+///       frame order (the SLAM pipeline does); not thread-safe. Cost per frame: one ORB
+///       extraction, an O(N²) Hamming match of N = num_features, PnP-RANSAC, HDBSCAN on the
+///       moving keypoints only, and a depth warp of the grid pixels around candidates.
 class GeometricMotionSource final : public DynamicObjectSource {
  public:
   /// @throws ds3d::InvalidArgument on bad params.
@@ -96,13 +125,16 @@ class GeometricMotionSource final : public DynamicObjectSource {
   [[nodiscard]] const GeometricMotionStats& last_stats() const noexcept { return stats_; }
   /// The parameters as validated by the constructor.
   [[nodiscard]] const GeometricMotionParams& params() const noexcept { return params_; }
+  /// The keypoints tested in the last detect() call (empty without a trusted pose).
+  [[nodiscard]] const std::vector<TestedKeypoint>& last_tested() const noexcept { return tested_; }
 
  private:
   struct Past {
     OrbFeatures features;
     cv::Mat min_depth;  // CV_16UC1, windowed minimum of the depth (0 → 65535)
-    cv::Mat depth;
+    cv::Mat depth;      // CV_16UC1, the frame's depth image
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
+    bool pose_valid = false;  // T_world_cam is chained from trusted poses
   };
   struct Held {
     Eigen::Matrix<double, 8, 3> corners_world;
@@ -113,9 +145,10 @@ class GeometricMotionSource final : public DynamicObjectSource {
   OrbExtractor extractor_;
   std::deque<Past> history_;
   std::vector<Held> held_;
-  std::vector<Held> candidates_;  // clusters of the previous frame, awaiting confirmation
+  std::vector<Held> candidates_;  // candidates of the previous frame, awaiting confirmation
   std::size_t frame_count_ = 0;
   GeometricMotionStats stats_;
+  std::vector<TestedKeypoint> tested_;
 };
 
 }  // namespace ds3d::slam

@@ -1,0 +1,232 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// GeometricMotionSource: parameter checks, synthetic scenes against the generator's masks (a
+// static room with a moving camera must stay clean, walkers must be found), and (when
+// ../shared/data exists) recorded sequences: Bonn crowd (people walking) and TUM fr1_xyz (static
+// desk, fast handheld camera). DS3D_DEBUG_GEOM=1 prints a per-frame trace.
+#include "ds3d/geometric_motion.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <iostream>
+#include <optional>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ds3d/dataset.hpp"
+#include "ds3d/dynamic_sources.hpp"
+#include "ds3d/synth.hpp"
+#include "support/files.hpp"
+
+namespace {
+
+using ds3d::slam::FrameInput;
+using ds3d::slam::GeometricMotionSource;
+
+// Keypoint counts of GeometricMotionSource + HdbscanMasker over a frame sequence. The truth mask
+// (optional) is non-zero on moving objects.
+struct Counts {
+  std::int64_t keypoints = 0, dynamic = 0, tp = 0, fp = 0, fn = 0;
+  int frames_with_objects = 0;
+  [[nodiscard]] double dynamic_fraction() const {
+    return keypoints > 0 ? static_cast<double>(dynamic) / static_cast<double>(keypoints) : 0.0;
+  }
+  [[nodiscard]] double precision() const {
+    return tp + fp > 0 ? static_cast<double>(tp) / static_cast<double>(tp + fp) : 0.0;
+  }
+  [[nodiscard]] double recall() const {
+    return tp + fn > 0 ? static_cast<double>(tp) / static_cast<double>(tp + fn) : 0.0;
+  }
+};
+
+struct Frame {
+  FrameInput input;
+  cv::Mat truth;  // CV_8UC1 or empty
+};
+
+// Runs the source and the masker over frames [0, n) from `get`, counting from frame `from` on.
+Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, std::size_t from,
+                  const ds3d::PinholeCamera& cam) {
+  GeometricMotionSource src;
+  ds3d::slam::HdbscanMasker masker;
+  const ds3d::slam::OrbExtractor orb;
+  const bool trace = std::getenv("DS3D_DEBUG_GEOM") != nullptr;
+  Counts c;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Frame f = get(i);
+    const auto obj = src.detect(f.input, cam);
+    const auto feats = orb.extract(f.input.rgb, f.input.depth, cam);
+    const auto m = masker.mask(f.input, cam, feats, obj);
+    if (trace) {
+      const auto& s = src.last_stats();
+      std::cout << i << " pose " << s.pose_ok << " match " << s.num_matches << " inl "
+                << s.num_pose_inliers << " sigma " << s.pixel_sigma << " tested " << s.num_tested
+                << " moving " << s.num_moving_keypoints << " cand " << s.num_candidates << " px "
+                << s.num_moving_pixels << " new " << s.num_new_objects << " obj " << s.num_objects
+                << " dyn " << std::count(m.begin(), m.end(), 1) << "/" << m.size();
+      if (!f.truth.empty()) {
+        int on = 0, on_moving = 0, off_moving = 0, on_cand = 0, off_cand = 0;
+        for (const auto& t : src.last_tested()) {
+          const bool truth = f.truth.at<std::uint8_t>(static_cast<int>(std::lround(t.v)),
+                                                      static_cast<int>(std::lround(t.u))) != 0U;
+          on += truth ? 1 : 0;
+          on_moving += (truth && t.moving) ? 1 : 0;
+          off_moving += (!truth && t.moving) ? 1 : 0;
+          on_cand += (truth && t.candidate) ? 1 : 0;
+          off_cand += (!truth && t.candidate) ? 1 : 0;
+        }
+        std::cout << " | tested on truth " << on << " moving " << on_moving << " (off "
+                  << off_moving << ") cand " << on_cand << " (off " << off_cand << ")";
+      }
+      std::cout << "\n";
+    }
+    if (const char* dir = std::getenv("DS3D_DEBUG_GEOM_DIR"); dir != nullptr) {
+      cv::Mat img = f.input.rgb.clone();
+      for (const auto& t : src.last_tested()) {
+        const cv::Scalar col = t.candidate ? cv::Scalar(255, 0, 255)
+                               : t.moving  ? cv::Scalar(0, 0, 255)
+                                           : cv::Scalar(0, 200, 0);
+        cv::circle(img, cv::Point2f(t.u, t.v), t.moving ? 4 : 2, col, t.moving ? 2 : 1);
+      }
+      for (const auto& b : ds3d::slam::image_boxes(obj, cam)) {
+        cv::rectangle(img, cv::Point2f(b.x_min, b.y_min), cv::Point2f(b.x_max, b.y_max),
+                      cv::Scalar(255, 128, 0), 2);
+      }
+      cv::imwrite((std::filesystem::path(dir) / ("geom_" + std::to_string(i) + ".png")).string(),
+                  img);
+    }
+    if (i < from) continue;
+    c.frames_with_objects += obj.boxes_3d.empty() ? 0 : 1;
+    for (std::size_t k = 0; k < m.size(); ++k) {
+      const bool pred = m[k] != 0U;
+      c.keypoints += 1;
+      c.dynamic += pred ? 1 : 0;
+      if (f.truth.empty()) continue;
+      const int u =
+          std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.x)), 0, f.truth.cols - 1);
+      const int v =
+          std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.y)), 0, f.truth.rows - 1);
+      const bool truth = f.truth.at<std::uint8_t>(v, u) != 0U;
+      c.tp += (truth && pred) ? 1 : 0;
+      c.fp += (!truth && pred) ? 1 : 0;
+      c.fn += (truth && !pred) ? 1 : 0;
+    }
+  }
+  return c;
+}
+
+Counts run_synthetic(ds3d::synth::Scenario scenario, int frames) {
+  ds3d::synth::SynthOptions opt;
+  opt.scenario = scenario;
+  opt.num_frames = frames;
+  opt.seed = 7;
+  const ds3d::synth::SyntheticScene scene(opt);
+  return run_source(
+      [&](std::size_t i) {
+        auto r = scene.render(i);
+        Frame f;
+        f.input.index = i;
+        f.input.timestamp = r.timestamp;
+        f.input.rgb = r.rgb;
+        f.input.depth = r.depth;
+        f.truth = r.dynamic_mask;
+        return f;
+      },
+      scene.size(), 0, opt.camera);
+}
+
+TEST(GeometricMotion, RejectsBadParams) {
+  EXPECT_THROW(GeometricMotionSource({.reference_gap = 0}), ds3d::InvalidArgument);
+  EXPECT_THROW(GeometricMotionSource({.match_ratio = 1.5F}), ds3d::InvalidArgument);
+  EXPECT_THROW(GeometricMotionSource({.moving_chi2 = -1.0}), ds3d::InvalidArgument);
+  EXPECT_THROW(GeometricMotionSource({.min_pixel_sigma = 0.0}), ds3d::InvalidArgument);
+  EXPECT_THROW(GeometricMotionSource({.min_depth_residual = 0.0F}), ds3d::InvalidArgument);
+  EXPECT_THROW(GeometricMotionSource({.min_inlier_ratio = 1.5}), ds3d::InvalidArgument);
+  EXPECT_THROW(GeometricMotionSource({.min_support = 0.0}), ds3d::InvalidArgument);
+  EXPECT_THROW(GeometricMotionSource({.max_object_size = std::nan("")}), ds3d::InvalidArgument);
+  try {
+    GeometricMotionSource bad({.min_pose_inliers = 3});
+    ADD_FAILURE() << "no exception";
+  } catch (const ds3d::InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("min_pose_inliers"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("3"), std::string::npos) << e.what();
+  }
+}
+
+TEST(GeometricMotion, IgnoresFramesWithoutOrWithBadDepth) {
+  GeometricMotionSource src;
+  FrameInput f;
+  f.rgb = cv::Mat::zeros(480, 640, CV_8UC3);
+  EXPECT_TRUE(src.detect(f, ds3d::PinholeCamera{}).boxes_3d.empty());
+  f.depth = cv::Mat::zeros(240, 320, CV_16UC1);  // wrong size
+  EXPECT_TRUE(src.detect(f, ds3d::PinholeCamera{}).boxes_3d.empty());
+  f.depth = cv::Mat::zeros(480, 640, CV_16UC1);  // no depth anywhere
+  for (int i = 0; i < 3; ++i) EXPECT_TRUE(src.detect(f, ds3d::PinholeCamera{}).boxes_3d.empty());
+  EXPECT_FALSE(src.last_stats().pose_ok);
+}
+
+// The camera moves through a room with no humans: nothing may be flagged.
+TEST(GeometricMotion, StaticRoomStaysClean) {
+  const Counts c = run_synthetic(ds3d::synth::Scenario::kStaticRoom, 60);
+  std::cout << "static_room: dynamic fraction " << c.dynamic_fraction() << ", frames with objects "
+            << c.frames_with_objects << "/60\n";
+  EXPECT_GT(c.keypoints, 10000);
+  EXPECT_LT(c.dynamic_fraction(), 0.01);
+}
+
+// Walkers with a moving camera: no static keypoint may be flagged. The generator's humans wear
+// periodic stripes, so most of their descriptor matches are ambiguous and fail the ratio test:
+// recall is low here (docs/dynamic.md), and only the false-alarm rate is asserted.
+TEST(GeometricMotion, NoFalseAlarmsInSyntheticWalkingSequence) {
+  const Counts c = run_synthetic(ds3d::synth::Scenario::kWalkingXyz, 60);
+  std::cout << "walking_xyz: keypoint precision " << c.precision() << " recall " << c.recall()
+            << " (tp " << c.tp << " fp " << c.fp << " fn " << c.fn << ")\n";
+  const std::int64_t static_keypoints = c.keypoints - c.tp - c.fn;
+  EXPECT_GT(c.tp + c.fn, 500);
+  EXPECT_LT(static_cast<double>(c.fp), 0.02 * static_cast<double>(static_keypoints));
+}
+
+// Frames [first, first + frames) of a recorded sequence; counts from the tenth frame on.
+Counts run_recorded(const std::filesystem::path& dir, std::size_t first, std::size_t frames) {
+  const auto ds = ds3d::RgbdDataset::open(dir);
+  return run_source(
+      [&](std::size_t i) {
+        const auto fr = ds.frame(first + i);
+        Frame f;
+        f.input.index = i;
+        f.input.timestamp = fr.timestamp;
+        f.input.rgb = fr.rgb;
+        f.input.depth = fr.depth;
+        return f;
+      },
+      std::min(frames, ds.size() - std::min(first, ds.size())), 10, ds.camera());
+}
+
+// Recorded data: people walking are found (Bonn crowd), a static desk seen by a fast handheld
+// camera is left alone (TUM fr1_xyz, the case issue 7 says must not be flagged).
+TEST(RecordedData, GeometricSourceFindsPeopleAndLeavesStaticScenes) {
+  const auto root = ds3d::test::shared_data_dir();
+  if (root.empty() || !std::filesystem::exists(root / "bonn_crowd_first300") ||
+      !std::filesystem::exists(root / "tum_fr1_xyz_first400")) {
+    GTEST_SKIP() << "no recorded data";
+  }
+  // Bonn crowd: people enter at about frame 220 and walk until the end of the slice.
+  const Counts crowd = run_recorded(root / "bonn_crowd_first300", 215, 85);
+  // fr1_xyz: the whole slice, including the fast handheld motion of frames 150-250.
+  const Counts still = run_recorded(root / "tum_fr1_xyz_first400", 0, 400);
+  std::cout << "geometric: bonn_crowd frames 225-299: dynamic fraction " << crowd.dynamic_fraction()
+            << ", frames with objects " << crowd.frames_with_objects
+            << "/75; tum_fr1_xyz frames 10-399: dynamic fraction " << still.dynamic_fraction()
+            << ", frames with objects " << still.frames_with_objects << "/390\n";
+  EXPECT_GT(crowd.frames_with_objects, 40);
+  EXPECT_GT(crowd.dynamic_fraction(), 0.05);
+  EXPECT_LT(still.dynamic_fraction(), 0.01);
+}
+
+}  // namespace
