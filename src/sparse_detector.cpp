@@ -62,13 +62,26 @@ struct DecLayer {
 constexpr const char* kHeadNames[5] = {"sem_cls_head", "center_head", "size_head", "angle_cls_head",
                                        "angle_residual_head"};
 
-// y = x W^T + b  ([rows, in] -> [rows, out])
-Mat linear(const Mat& x, const Linear& l) {
-  Mat y = x * l.w.transpose();
-  y.rowwise() += l.b;
+// y = x W^T + b  ([rows, in] -> [rows, out]). The bias is written first and the product added
+// into it: Eigen would otherwise zero the output before its GEMM and add the bias in another pass.
+// [rows, b.size()] with every row = b (row copies: Eigen's replicate() indexes element-wise).
+template <class Row>
+Mat broadcast_rows(const Row& b, Eigen::Index rows) {
+  Mat y(rows, b.size());
+  for (Eigen::Index r = 0; r < rows; ++r) y.row(r) = b;
   return y;
 }
-Mat linear_relu(const Mat& x, const Linear& l) { return linear(x, l).cwiseMax(0.0F); }
+
+Mat linear(const Mat& x, const Linear& l) {
+  Mat y = broadcast_rows(l.b, x.rows());
+  y.noalias() += x * l.w.transpose();
+  return y;
+}
+Mat linear_relu(const Mat& x, const Linear& l) {
+  Mat y = linear(x, l);
+  y = y.cwiseMax(0.0F);  // in place: no second [rows, out] buffer
+  return y;
+}
 
 Mat layer_norm(const Mat& x, const Norm& n, float eps) {
   Mat y(x.rows(), x.cols());
@@ -84,29 +97,46 @@ Mat layer_norm(const Mat& x, const Norm& n, float eps) {
 
 // Multi-head attention as torch.nn.MultiheadAttention (packed in_proj, scale 1/sqrt(head_dim)).
 // q_in [nq, d], k_in [nk, d], v_in [nk, d] -> [nq, d]. Heads run in parallel on num_threads.
+// Softmax row by row while the row is in L1 (max, exp, sum in one sweep each over nk floats
+// instead of three passes over the whole [nq, nk] matrix), and its 1/sum is applied to the
+// [nq, hd] output instead of the [nq, nk] weights (same value up to float rounding, ~1e-7).
 Mat attention(const Mat& q_in, const Mat& k_in, const Mat& v_in, const Attention& a, int heads,
               int num_threads) {
   const Eigen::Index d = a.w_in.cols();
   const Eigen::Index hd = d / heads;
-  Mat q = q_in * a.w_in.topRows(d).transpose();
-  q.rowwise() += a.b_in.head(d);
-  Mat k = k_in * a.w_in.middleRows(d, d).transpose();
-  k.rowwise() += a.b_in.segment(d, d);
-  Mat v = v_in * a.w_in.bottomRows(d).transpose();
-  v.rowwise() += a.b_in.tail(d);
+  Mat q;
+  Mat k;
+  Mat v;
+  if (&q_in == &k_in && &k_in == &v_in) {  // self-attention on one input: one [n, 3d] GEMM
+    Mat qkv = broadcast_rows(a.b_in, q_in.rows());  // [n, 3d]
+    qkv.noalias() += q_in * a.w_in.transpose();
+    q = qkv.leftCols(d);
+    k = qkv.middleCols(d, d);
+    v = qkv.rightCols(d);
+  } else {
+    q = broadcast_rows(a.b_in.head(d), q_in.rows());
+    q.noalias() += q_in * a.w_in.topRows(d).transpose();
+    k = broadcast_rows(a.b_in.segment(d, d), k_in.rows());
+    k.noalias() += k_in * a.w_in.middleRows(d, d).transpose();
+    v = broadcast_rows(a.b_in.tail(d), v_in.rows());
+    v.noalias() += v_in * a.w_in.bottomRows(d).transpose();
+  }
   q *= 1.0F / std::sqrt(static_cast<float>(hd));
   Mat o(q.rows(), d);
   detail::parallel_chunks(static_cast<std::size_t>(heads), static_cast<std::size_t>(heads), num_threads,
                           [&](std::size_t begin, std::size_t end, std::size_t) {
+                            Mat s(q.rows(), k.rows());  // [nq, nk]
+                            Vec inv(q.rows());
                             for (std::size_t h = begin; h < end; ++h) {
                               const auto c0 = static_cast<Eigen::Index>(h) * hd;
-                              Mat s = q.middleCols(c0, hd) * k.middleCols(c0, hd).transpose();  // [nq, nk]
-                              const Vec mx = s.rowwise().maxCoeff();
-                              s.colwise() -= mx;
-                              s = s.array().exp();  // Eigen's vectorised exp
-                              const Vec inv = s.rowwise().sum().cwiseInverse();
-                              s = inv.asDiagonal() * s;
+                              s.noalias() = q.middleCols(c0, hd) * k.middleCols(c0, hd).transpose();
+                              for (Eigen::Index r = 0; r < s.rows(); ++r) {
+                                auto row = s.row(r).array();
+                                row = (row - row.maxCoeff()).exp();  // Eigen's vectorised exp
+                                inv[r] = 1.0F / row.sum();
+                              }
                               o.middleCols(c0, hd).noalias() = s * v.middleCols(c0, hd);
+                              o.middleCols(c0, hd) = inv.asDiagonal() * o.middleCols(c0, hd);
                             }
                           });
   return linear(o, a.out);
