@@ -7,9 +7,11 @@
 #                    binaries built this way need an AVX2+FMA CPU: Haswell / Zen or newer)
 #   none           - the compiler's baseline (SSE2 on x86-64)
 # EIGEN_MAX_ALIGN_BYTES=16 is an INTERFACE definition of ds3d::core in EVERY configuration: Eigen
-# documents it for keeping AVX code ABI-compatible with SSE code (Debian's Ceres and OpenCV, and
-# consumers compiled without the flags), since otherwise Eigen aligns fixed-size members to 32
-# bytes under AVX and 16 without, and objects passed between such translation units break.
+# documents it for keeping AVX code ABI-compatible with SSE code, since otherwise Eigen aligns
+# fixed-size members to 32 bytes under AVX and 16 without. It does NOT unify the heap allocator
+# (Eigen 3.4 uses its 32-byte hand-made aligned malloc under AVX, plain malloc under SSE), so code
+# that exchanges Eigen heap objects with ds3d must use the same flags: installed AVX2 builds
+# export them to consumers (CMakeLists.txt); see docs/htx.md.
 include(CheckCXXCompilerFlag)
 include(CheckCXXSourceRuns)
 
