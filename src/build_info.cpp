@@ -36,6 +36,36 @@ BuildInfo build_info() {
   info.debug = true;
 #endif
   info.hardware_threads = static_cast<int>(std::thread::hardware_concurrency());
+#ifdef DS3D_SIMD_LEVEL
+  info.simd = DS3D_SIMD_LEVEL;
+#else
+  info.simd = "unknown";
+#endif
+  const char* isa[] = {
+#ifdef __SSE2__
+      "sse2",
+#endif
+#ifdef __AVX__
+      "avx",
+#endif
+#ifdef __AVX2__
+      "avx2",
+#endif
+#ifdef __FMA__
+      "fma",
+#endif
+#ifdef __AVX512F__
+      "avx512f",
+#endif
+#ifdef __ARM_NEON
+      "neon",
+#endif
+      nullptr};
+  for (const char* const* p = isa; *p != nullptr; ++p) {
+    if (!info.simd_isa.empty()) info.simd_isa += ' ';
+    info.simd_isa += *p;
+  }
+  info.eigen_max_align_bytes = EIGEN_MAX_ALIGN_BYTES;
   return info;
 }
 
@@ -43,7 +73,8 @@ std::string build_info_string() {
   const BuildInfo i = build_info();
   return "ds3d " + i.ds3d_version + " (" + (i.debug ? "debug" : "release") + ", " + i.compiler +
          "; OpenCV " + i.opencv_version + ", Ceres " + i.ceres_version + ", Eigen " +
-         i.eigen_version + "; " + std::to_string(i.hardware_threads) + " hardware threads)";
+         i.eigen_version + "; SIMD " + i.simd + " [" + i.simd_isa + "]; " +
+         std::to_string(i.hardware_threads) + " hardware threads)";
 }
 
 }  // namespace ds3d

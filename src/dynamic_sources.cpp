@@ -2,9 +2,16 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 #include "ds3d/dynamic_sources.hpp"
 
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <sstream>
+#include <system_error>
 #include <utility>
+
+#include <Eigen/Geometry>
+#include <opencv2/imgproc.hpp>
 
 #include "ds3d/errors.hpp"
 #include "ds3d/geometric_motion.hpp"
@@ -118,7 +125,210 @@ std::vector<std::uint8_t> HdbscanMasker::mask(const FrameInput& frame, const Pin
   return out;
 }
 
-std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec) {
+// ---- HtxSource -------------------------------------------------------------------------------
+
+void HtxSourceParams::validate() const {
+  preprocess.validate();
+  input.validate();
+  DS3D_CHECK(std::isfinite(min_score) && min_score >= 0.0F && min_score <= 1.0F,
+             "ds3d::slam::HtxSourceParams: min_score must be in [0, 1] (got ", min_score, ")");
+  DS3D_CHECK(detect_every >= 1, "ds3d::slam::HtxSourceParams: detect_every must be >= 1 (got ",
+             detect_every, ")");
+  DS3D_CHECK(num_threads >= 0, "ds3d::slam::HtxSourceParams: num_threads must be >= 0 (got ",
+             num_threads, ")");
+}
+
+namespace {
+
+std::vector<std::int32_t> class_labels(const std::vector<std::string>& wanted,
+                                       const std::vector<std::string>& known) {
+  std::vector<std::int32_t> out;
+  for (const std::string& w : wanted) {
+    const auto it = std::find(known.begin(), known.end(), w);
+    if (it == known.end()) {
+      std::ostringstream names;
+      for (std::size_t i = 0; i < known.size(); ++i) names << (i > 0 ? ", " : "") << known[i];
+      throw InvalidArgument(detail::concat("ds3d::slam::HtxSource: class '", w,
+                                           "' is not a class of the detector (classes: ",
+                                           names.str(), ")"));
+    }
+    out.push_back(static_cast<std::int32_t>(it - known.begin()));
+  }
+  return out;
+}
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Frame index mixed into the draw's seed (SplitMix64 finaliser), so consecutive frames get
+// unrelated draws while the same frame always gets the same one.
+std::uint64_t mix_seed(std::uint64_t seed, std::size_t index) {
+  std::uint64_t z = seed + 0x9E3779B97F4A7C15ULL * (static_cast<std::uint64_t>(index) + 1U);
+  z = (z ^ (z >> 30U)) * 0xBF58476D1CE4E5B9ULL;
+  z = (z ^ (z >> 27U)) * 0x94D049BB133111EBULL;
+  return z ^ (z >> 31U);
+}
+
+}  // namespace
+
+HtxSource::HtxSource(std::shared_ptr<const SparseDetector> detector, HtxSourceParams params)
+    : params_(std::move(params)), R_up_cam_(upright_rotation(Eigen::Vector3d(0.0, -1.0, 0.0))) {
+  DS3D_CHECK(detector != nullptr, "ds3d::slam::HtxSource: detector must not be null");
+  params_.validate();
+  labels_ = class_labels(params_.classes, detector->config().class_names);
+  const int threads = params_.num_threads;
+  detect_ = [detector = std::move(detector), threads](Eigen::Ref<const Points3f> xyz) {
+    return detector->detect(xyz, threads);
+  };
+}
+
+HtxSource::HtxSource(DetectFn detect, std::vector<std::string> class_names, HtxSourceParams params)
+    : detect_(std::move(detect)),
+      params_(std::move(params)),
+      R_up_cam_(upright_rotation(Eigen::Vector3d(0.0, -1.0, 0.0))) {
+  DS3D_CHECK(static_cast<bool>(detect_), "ds3d::slam::HtxSource: detect must not be empty");
+  params_.validate();
+  labels_ = class_labels(params_.classes, class_names);
+}
+
+DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& camera) {
+  const bool run_now = frame_count_ % static_cast<std::size_t>(params_.detect_every) == 0;
+  ++frame_count_;
+  stats_ = HtxFrameStats{};
+  if (!run_now) return last_objects_;  // carried: the last detection's camera-frame boxes
+  last_objects_ = DynamicObjects{};
+  boxes_.clear();
+  if (frame.depth.empty()) return last_objects_;
+  DS3D_CHECK(frame.depth.type() == CV_16UC1 && frame.depth.cols == camera.width &&
+                 frame.depth.rows == camera.height,
+             "ds3d::slam::HtxSource::detect: depth must be CV_16UC1 of ", camera.width, "x",
+             camera.height, " (got type ", frame.depth.type(), ", ", frame.depth.cols, "x",
+             frame.depth.rows, ")");
+  const auto t0 = std::chrono::steady_clock::now();
+  PreprocessParams pp = params_.preprocess;
+  pp.num_threads = params_.num_threads;
+  const PreprocessResult pre =
+      preprocess(frame.depth.ptr<std::uint16_t>(), frame.depth.cols, frame.depth.rows,
+                 static_cast<std::ptrdiff_t>(frame.depth.step1()), camera, pp);
+  stats_.num_points = static_cast<std::size_t>(pre.points.rows());
+  if (pre.ground_found) {
+    const Eigen::Vector3d up = pre.ground_plane.head<3>();
+    // The preprocess prior keeps the floor normal within 30° of camera -y, so this holds;
+    // checked anyway so that a custom prior cannot make upright_rotation throw mid-sequence.
+    if (up.allFinite() && up.y() < 0.0) {
+      R_up_cam_ = upright_rotation(up);
+      stats_.ground_found = true;
+    }
+  }
+  DetectorInputParams ip = params_.input;
+  ip.seed = mix_seed(params_.input.seed, frame.index);
+  const DetectorInput in = make_detector_input(pre.points, R_up_cam_, ip);
+  stats_.preprocess_ms = ms_since(t0);
+  if (in.points.rows() == 0) return last_objects_;
+  const auto t1 = std::chrono::steady_clock::now();
+  std::vector<Box3> boxes = detect_(in.points);
+  stats_.detect_ms = ms_since(t1);
+  stats_.detected = true;
+  const Eigen::Matrix3d R_cam_up = R_up_cam_.cast<double>().transpose();
+  for (const Box3& b : boxes) {
+    if (!(b.score >= params_.min_score)) continue;  // also drops a NaN score
+    if (!labels_.empty() && std::find(labels_.begin(), labels_.end(), b.label) == labels_.end()) {
+      continue;
+    }
+    if (!b.centre.allFinite() || !b.size.allFinite() || !std::isfinite(b.yaw)) continue;
+    Eigen::Matrix<float, 8, 3> corners;
+    const auto up_corners = box::corners(b);
+    for (int k = 0; k < 8; ++k) {
+      corners.row(k) = (R_cam_up * up_corners[static_cast<std::size_t>(k)]).cast<float>().transpose();
+    }
+    last_objects_.boxes_3d.push_back(corners);
+    boxes_.push_back(b);
+  }
+  stats_.num_boxes = boxes_.size();
+  return last_objects_;
+}
+
+// ---- CompositeSource ---------------------------------------------------------------------------
+
+CompositeSource::CompositeSource(std::shared_ptr<DynamicObjectSource> first,
+                                 std::shared_ptr<DynamicObjectSource> second)
+    : first_(std::move(first)), second_(std::move(second)) {
+  DS3D_CHECK(first_ != nullptr && second_ != nullptr,
+             "ds3d::slam::CompositeSource: both sources must be non-null (got first ",
+             first_ ? "set" : "null", ", second ", second_ ? "set" : "null", ")");
+}
+
+std::string CompositeSource::name() const { return first_->name() + "+" + second_->name(); }
+
+DynamicObjects CompositeSource::detect(const FrameInput& frame, const PinholeCamera& camera) {
+  DynamicObjects out = first_->detect(frame, camera);
+  FrameInput rest = frame;
+  const std::vector<ImageBox> boxes = image_boxes(out, camera);
+  const cv::Mat& m = out.pixel_mask;
+  const bool has_mask = !m.empty() && m.type() == CV_8UC1 && m.cols == camera.width &&
+                        m.rows == camera.height;
+  if (!frame.depth.empty() && (!boxes.empty() || has_mask)) {
+    rest.depth = frame.depth.clone();  // the caller's image is shared: never write into it
+    const cv::Rect image(0, 0, rest.depth.cols, rest.depth.rows);
+    for (const ImageBox& b : boxes) {
+      const cv::Rect r(cv::Point(static_cast<int>(std::floor(b.x_min)),
+                                 static_cast<int>(std::floor(b.y_min))),
+                       cv::Point(static_cast<int>(std::ceil(b.x_max)) + 1,
+                                 static_cast<int>(std::ceil(b.y_max)) + 1));
+      rest.depth(r & image).setTo(0);
+    }
+    if (has_mask && m.size() == rest.depth.size()) rest.depth.setTo(0, m);
+  }
+  DynamicObjects more = second_->detect(rest, camera);
+  if (out.scores.empty() && !more.scores.empty()) out.scores.assign(out.boxes_2d.size(), 1.0F);
+  if (!out.scores.empty() && more.scores.empty()) more.scores.assign(more.boxes_2d.size(), 1.0F);
+  out.boxes_2d.insert(out.boxes_2d.end(), more.boxes_2d.begin(), more.boxes_2d.end());
+  out.scores.insert(out.scores.end(), more.scores.begin(), more.scores.end());
+  out.boxes_3d.insert(out.boxes_3d.end(), more.boxes_3d.begin(), more.boxes_3d.end());
+  if (out.pixel_mask.empty()) {
+    out.pixel_mask = more.pixel_mask;
+  } else if (!more.pixel_mask.empty() && more.pixel_mask.size() == out.pixel_mask.size() &&
+             more.pixel_mask.type() == out.pixel_mask.type()) {
+    cv::bitwise_or(out.pixel_mask, more.pixel_mask, out.pixel_mask);
+  }
+  return out;
+}
+
+// ---- factory -----------------------------------------------------------------------------------
+
+std::vector<std::filesystem::path> default_weights_candidates() {
+  std::vector<std::filesystem::path> out;
+#ifdef DS3D_SOURCE_DIR
+  out.push_back(std::filesystem::path(DS3D_SOURCE_DIR) / "models" / kDefaultHtxWeights);
+#endif
+#ifdef DS3D_INSTALL_DATADIR
+  out.push_back(std::filesystem::path(DS3D_INSTALL_DATADIR) / "models" / kDefaultHtxWeights);
+#endif
+  std::error_code ec;
+  const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec && !exe.empty()) {
+    out.push_back(exe.parent_path().parent_path() / "share" / "ds3d" / "models" /
+                  kDefaultHtxWeights);
+  }
+  return out;
+}
+
+std::filesystem::path find_default_weights() {
+  const auto candidates = default_weights_candidates();
+  std::ostringstream tried;
+  for (const auto& p : candidates) {
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(p, ec)) return p;
+    tried << (tried.tellp() > 0 ? ", " : "") << p.string();
+  }
+  throw IoError(detail::concat("ds3d::slam::find_default_weights: no HTx weights file found (tried ",
+                               tried.str(), "); pass one with --weights PATH"));
+}
+
+std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec,
+                                                         const DynamicSourceOptions& options) {
+  constexpr const char* kKnown = "none, geometric, htx, file:PATH or A+B (e.g. htx+geometric)";
   if (spec == "none") return std::make_shared<NoDynamicObjects>();
   if (spec == "geometric") return std::make_shared<GeometricMotionSource>();
   if (spec.rfind("file:", 0) == 0) {
@@ -127,8 +337,31 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
                "')");
     return std::make_shared<FileSource>(path);
   }
+  if (spec == "htx") {
+    const std::filesystem::path weights =
+        options.weights.empty() ? find_default_weights() : options.weights;
+    std::error_code ec;
+    DS3D_CHECK_AS(IoError, std::filesystem::is_regular_file(weights, ec),
+                  "ds3d::slam::make_dynamic_source: HTx weights file '", weights.string(),
+                  "' does not exist or is not a file");
+    auto detector = std::make_shared<const SparseDetector>(SparseDetector::load(weights));
+    return std::make_shared<HtxSource>(std::move(detector), options.htx);
+  }
+  if (const auto plus = spec.find('+'); plus != std::string::npos) {
+    const std::string a = spec.substr(0, plus);
+    const std::string b = spec.substr(plus + 1);
+    // Both names are checked before either source is built (an htx source loads its weights).
+    const auto simple = [](const std::string& x) {
+      return x == "geometric" || x == "htx" || (x.rfind("file:", 0) == 0 && x.size() > 5);
+    };
+    DS3D_CHECK(simple(a) && (simple(b) || b.find('+') != std::string::npos),
+               "ds3d::slam::make_dynamic_source: '", spec, "' must join two sources other than "
+               "none (expected ", kKnown, ")");
+    return std::make_shared<CompositeSource>(make_dynamic_source(a, options),
+                                             make_dynamic_source(b, options));
+  }
   throw InvalidArgument(detail::concat("ds3d::slam::make_dynamic_source: unknown source '", spec,
-                                       "' (expected none, geometric or file:PATH)"));
+                                       "' (expected ", kKnown, ")"));
 }
 
 }  // namespace ds3d::slam

@@ -11,6 +11,8 @@
 #include <numeric>
 #include <utility>
 
+#include <Eigen/Geometry>
+
 #include "ds3d/detail/json.hpp"
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/errors.hpp"
@@ -60,13 +62,26 @@ struct DecLayer {
 constexpr const char* kHeadNames[5] = {"sem_cls_head", "center_head", "size_head", "angle_cls_head",
                                        "angle_residual_head"};
 
-// y = x W^T + b  ([rows, in] -> [rows, out])
-Mat linear(const Mat& x, const Linear& l) {
-  Mat y = x * l.w.transpose();
-  y.rowwise() += l.b;
+// y = x W^T + b  ([rows, in] -> [rows, out]). The bias is written first and the product added
+// into it: Eigen would otherwise zero the output before its GEMM and add the bias in another pass.
+// [rows, b.size()] with every row = b (row copies: Eigen's replicate() indexes element-wise).
+template <class Row>
+Mat broadcast_rows(const Row& b, Eigen::Index rows) {
+  Mat y(rows, b.size());
+  for (Eigen::Index r = 0; r < rows; ++r) y.row(r) = b;
   return y;
 }
-Mat linear_relu(const Mat& x, const Linear& l) { return linear(x, l).cwiseMax(0.0F); }
+
+Mat linear(const Mat& x, const Linear& l) {
+  Mat y = broadcast_rows(l.b, x.rows());
+  y.noalias() += x * l.w.transpose();
+  return y;
+}
+Mat linear_relu(const Mat& x, const Linear& l) {
+  Mat y = linear(x, l);
+  y = y.cwiseMax(0.0F);  // in place: no second [rows, out] buffer
+  return y;
+}
 
 Mat layer_norm(const Mat& x, const Norm& n, float eps) {
   Mat y(x.rows(), x.cols());
@@ -82,29 +97,46 @@ Mat layer_norm(const Mat& x, const Norm& n, float eps) {
 
 // Multi-head attention as torch.nn.MultiheadAttention (packed in_proj, scale 1/sqrt(head_dim)).
 // q_in [nq, d], k_in [nk, d], v_in [nk, d] -> [nq, d]. Heads run in parallel on num_threads.
+// Softmax row by row while the row is in L1 (max, exp, sum in one sweep each over nk floats
+// instead of three passes over the whole [nq, nk] matrix), and its 1/sum is applied to the
+// [nq, hd] output instead of the [nq, nk] weights (same value up to float rounding, ~1e-7).
 Mat attention(const Mat& q_in, const Mat& k_in, const Mat& v_in, const Attention& a, int heads,
               int num_threads) {
   const Eigen::Index d = a.w_in.cols();
   const Eigen::Index hd = d / heads;
-  Mat q = q_in * a.w_in.topRows(d).transpose();
-  q.rowwise() += a.b_in.head(d);
-  Mat k = k_in * a.w_in.middleRows(d, d).transpose();
-  k.rowwise() += a.b_in.segment(d, d);
-  Mat v = v_in * a.w_in.bottomRows(d).transpose();
-  v.rowwise() += a.b_in.tail(d);
+  Mat q;
+  Mat k;
+  Mat v;
+  if (&q_in == &k_in && &k_in == &v_in) {  // self-attention on one input: one [n, 3d] GEMM
+    Mat qkv = broadcast_rows(a.b_in, q_in.rows());  // [n, 3d]
+    qkv.noalias() += q_in * a.w_in.transpose();
+    q = qkv.leftCols(d);
+    k = qkv.middleCols(d, d);
+    v = qkv.rightCols(d);
+  } else {
+    q = broadcast_rows(a.b_in.head(d), q_in.rows());
+    q.noalias() += q_in * a.w_in.topRows(d).transpose();
+    k = broadcast_rows(a.b_in.segment(d, d), k_in.rows());
+    k.noalias() += k_in * a.w_in.middleRows(d, d).transpose();
+    v = broadcast_rows(a.b_in.tail(d), v_in.rows());
+    v.noalias() += v_in * a.w_in.bottomRows(d).transpose();
+  }
   q *= 1.0F / std::sqrt(static_cast<float>(hd));
   Mat o(q.rows(), d);
   detail::parallel_chunks(static_cast<std::size_t>(heads), static_cast<std::size_t>(heads), num_threads,
                           [&](std::size_t begin, std::size_t end, std::size_t) {
+                            Mat s(q.rows(), k.rows());  // [nq, nk]
+                            Vec inv(q.rows());
                             for (std::size_t h = begin; h < end; ++h) {
                               const auto c0 = static_cast<Eigen::Index>(h) * hd;
-                              Mat s = q.middleCols(c0, hd) * k.middleCols(c0, hd).transpose();  // [nq, nk]
-                              const Vec mx = s.rowwise().maxCoeff();
-                              s.colwise() -= mx;
-                              s = s.array().exp();  // Eigen's vectorised exp
-                              const Vec inv = s.rowwise().sum().cwiseInverse();
-                              s = inv.asDiagonal() * s;
+                              s.noalias() = q.middleCols(c0, hd) * k.middleCols(c0, hd).transpose();
+                              for (Eigen::Index r = 0; r < s.rows(); ++r) {
+                                auto row = s.row(r).array();
+                                row = (row - row.maxCoeff()).exp();  // Eigen's vectorised exp
+                                inv[r] = 1.0F / row.sum();
+                              }
                               o.middleCols(c0, hd).noalias() = s * v.middleCols(c0, hd);
+                              o.middleCols(c0, hd) = inv.asDiagonal() * o.middleCols(c0, hd);
                             }
                           });
   return linear(o, a.out);
@@ -775,6 +807,69 @@ std::vector<std::size_t> SparseDetector::postprocess(Eigen::Ref<const Points3f> 
     if (!suppressed) kept.push_back(i);
   }
   return kept;
+}
+
+
+// ---- detector input (htx spec §6.1) -------------------------------------------------------
+
+void DetectorInputParams::validate() const {
+  DS3D_CHECK(num_points >= 1, "ds3d::DetectorInputParams: num_points must be >= 1 (got ",
+             num_points, ")");
+}
+
+Eigen::Matrix3f upright_rotation(const Eigen::Vector3d& up_cam) {
+  DS3D_CHECK(up_cam.allFinite() && up_cam.norm() > 0.0,
+             "ds3d::upright_rotation: up_cam must be finite and non-zero (got ", up_cam.transpose(),
+             ")");
+  Eigen::Matrix3d swap;  // camera (x right, y down, z fwd) -> upright (X right, Y fwd, Z up)
+  swap << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  const Eigen::Vector3d n = (swap * up_cam).normalized();
+  DS3D_CHECK(n.z() > 0.0, "ds3d::upright_rotation: up_cam points below the horizon (got ",
+             up_cam.transpose(), ")");
+  // Smallest rotation taking n to +Z (Rodrigues about n x Z).
+  const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(n, Eigen::Vector3d::UnitZ());
+  return (q.toRotationMatrix() * swap).cast<float>();
+}
+
+DetectorInput make_detector_input(Eigen::Ref<const Points3f> cloud_cam,
+                                  const Eigen::Matrix3f& R_up_cam,
+                                  const DetectorInputParams& params) {
+  params.validate();
+  const auto n = static_cast<std::size_t>(cloud_cam.rows());
+  for (std::size_t i = 0; i < n; ++i) {
+    DS3D_CHECK(cloud_cam.row(static_cast<Eigen::Index>(i)).allFinite(),
+               "ds3d::make_detector_input: cloud_cam row ", i, " is not finite");
+  }
+  DetectorInput out;
+  out.R_up_cam = R_up_cam;
+  if (n == 0) return out;
+  // SplitMix64 (Steele et al. 2014): tiny, and the same stream on every platform, which
+  // std::uniform_int_distribution does not promise.
+  std::uint64_t state = params.seed;
+  const auto next = [&state](std::uint64_t bound) {
+    state += 0x9E3779B97F4A7C15ULL;
+    std::uint64_t z = state;
+    z = (z ^ (z >> 30U)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27U)) * 0x94D049BB133111EBULL;
+    return (z ^ (z >> 31U)) % bound;  // bias < bound / 2^64
+  };
+  const auto m = static_cast<std::size_t>(params.num_points);
+  std::vector<std::uint32_t> rows(std::max(n, m));
+  std::iota(rows.begin(), rows.begin() + static_cast<std::ptrdiff_t>(n), 0U);
+  for (std::size_t i = n; i < m; ++i) rows[i] = static_cast<std::uint32_t>(next(n));
+  // Partial Fisher-Yates: the first m entries become a uniform random draw in random order.
+  for (std::size_t i = 0; i < m; ++i) {
+    const std::size_t j = i + static_cast<std::size_t>(next(rows.size() - i));
+    std::swap(rows[i], rows[j]);
+  }
+  rows.resize(m);
+  out.points.resize(static_cast<Eigen::Index>(m), 3);
+  for (std::size_t i = 0; i < m; ++i) {
+    out.points.row(static_cast<Eigen::Index>(i)) =
+        (R_up_cam * cloud_cam.row(static_cast<Eigen::Index>(rows[i])).transpose()).transpose();
+  }
+  out.rows = std::move(rows);
+  return out;
 }
 
 }  // namespace ds3d

@@ -3,11 +3,17 @@
 // HTx-lite inference time per frame (network + post-processing; the part head separately),
 // fast and quality profiles, 4,096 gravity-aligned points, 1 or 2 threads. Weights are random
 // (timing does not depend on their values). Compare with PyTorch: scripts/bench_htx_vs_torch.py.
+// BM_HtxFrame: one whole `--dynamic htx` detection (HtxSource::detect: preprocess of a 640x480
+// synthetic depth frame, gravity alignment, the 4,096-point draw, the network, box conversion).
 #include <benchmark/benchmark.h>
 
+#include <memory>
 #include <string>
+#include <vector>
 
+#include "ds3d/dynamic_sources.hpp"
 #include "ds3d/sparse_detector.hpp"
+#include "ds3d/synth.hpp"
 #include "ds3d/weights_io.hpp"
 #include "support/htx_random.hpp"
 
@@ -38,5 +44,44 @@ BENCHMARK(BM_HtxDetect)
     ->ArgsProduct({{0, 1}, {1, 2}, {0, 1}})
     ->Unit(benchmark::kMillisecond)
     ->MinTime(1.0);
+
+// Args: profile (0 fast, 1 quality). One thread. Counters: preprocess_ms / detect_ms (wall,
+// mean per frame) and the preprocessed cloud size.
+void BM_HtxFrame(benchmark::State& state) {
+  ds3d::synth::SynthOptions so;
+  so.num_frames = 8;
+  so.seed = 3;
+  so.num_humans = 2;
+  const ds3d::synth::SyntheticScene scene(so);
+  std::vector<ds3d::slam::FrameInput> frames;
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const auto f = scene.render(i);
+    ds3d::slam::FrameInput in;
+    in.index = f.index;
+    in.timestamp = f.timestamp;
+    in.rgb = f.rgb;
+    in.depth = f.depth;
+    frames.push_back(in);
+  }
+  auto det = std::make_shared<const ds3d::SparseDetector>(detector(static_cast<int>(state.range(0))));
+  ds3d::slam::HtxSource src(det, {.classes = {}});
+  double pre_ms = 0;
+  double det_ms = 0;
+  double points = 0;
+  std::size_t i = 0;
+  for (auto _ : state) {
+    auto out = src.detect(frames[i++ % frames.size()], so.camera);
+    benchmark::DoNotOptimize(out.boxes_3d.data());
+    pre_ms += src.last_stats().preprocess_ms;
+    det_ms += src.last_stats().detect_ms;
+    points += static_cast<double>(src.last_stats().num_points);
+  }
+  const auto n = static_cast<double>(state.iterations());
+  state.counters["preprocess_ms"] = pre_ms / n;
+  state.counters["detect_ms"] = det_ms / n;
+  state.counters["cloud_points"] = points / n;
+  state.SetLabel(det->config().profile);
+}
+BENCHMARK(BM_HtxFrame)->ArgName("profile")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(1.0);
 
 }  // namespace

@@ -17,6 +17,15 @@ struct BuildInfo {
   std::string compiler;        ///< compiler id and version
   bool debug = false;          ///< true when built without NDEBUG
   int hardware_threads = 0;    ///< std::thread::hardware_concurrency() on this machine
+  /// SIMD level chosen at configure time (CMake option DS3D_SIMD): "avx2" (-mavx2 -mfma) or
+  /// "none" (compiler baseline, SSE2 on x86-64).
+  std::string simd;
+  /// Instruction sets the library was actually compiled for, from the compiler's macros,
+  /// e.g. "sse2 avx avx2 fma".
+  std::string simd_isa;
+  /// EIGEN_MAX_ALIGN_BYTES of the library (16 in every ds3d build; code sharing Eigen objects
+  /// with ds3d must use the same value, which target ds3d::core sets for consumers).
+  int eigen_max_align_bytes = 0;
 };
 
 /// Returns the build information of the linked ds3d::slam library. Never throws.

@@ -4,18 +4,24 @@
 /// @file dynamic_sources.hpp
 /// @brief Adapters that plug the dynamic-feature removal into the SLAM front-end's hooks
 /// (ds3d::slam; OpenCV): FileSource (boxes from a JSON-lines detections file), HdbscanMasker
-/// (DynamicFeatureFilter on the ORB keypoints), and conversions between DynamicObjects and
-/// ImageBox lists. GeometricMotionSource (no learned weights) is in geometric_motion.hpp.
+/// (DynamicFeatureFilter on the ORB keypoints), HtxSource (the HTx-lite 3-D detector on the
+/// preprocessed depth), CompositeSource (two sources in sequence, e.g. `htx+geometric`), and
+/// conversions between DynamicObjects and ImageBox lists. GeometricMotionSource (no learned
+/// weights) is in geometric_motion.hpp.
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "ds3d/detections.hpp"
+#include "ds3d/box3.hpp"
 #include "ds3d/dynamic_filter.hpp"
+#include "ds3d/preprocess.hpp"
 #include "ds3d/slam_frontend.hpp"
+#include "ds3d/sparse_detector.hpp"
 
 namespace ds3d::slam {
 
@@ -85,9 +91,126 @@ class HdbscanMasker final : public DynamicFeatureMasker {
 [[nodiscard]] Keypoints3f keypoint_array(const OrbFeatures& features, const cv::Mat& depth,
                                          const PinholeCamera& camera);
 
-/// Builds the source named by a `--dynamic` option value: "none", "file:PATH" or "geometric"
-/// (GeometricMotionSource with default parameters).
-/// @throws ds3d::InvalidArgument for an unknown name; ds3d::IoError for an unreadable file.
-[[nodiscard]] std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec);
+/// Options of HtxSource.
+struct HtxSourceParams {
+  /// Depth → detector cloud (3DS-SLAM §III-B; preprocess.hpp). Its num_threads is replaced by
+  /// HtxSourceParams::num_threads.
+  PreprocessParams preprocess{};
+  DetectorInputParams input{};  ///< points drawn for the detector (seed mixed with frame index)
+  float min_score = 0.3F;       ///< boxes with a lower score p[class]·objectness are dropped, [0, 1]
+  /// Class names (from the weights' config) treated as dynamic; empty = every class.
+  std::vector<std::string> classes{"person"};
+  int detect_every = 1;  ///< run the detector on every k-th frame (k >= 1); see HtxSource
+  int num_threads = 1;   ///< threads of preprocess and the detector's attention; 0 = all, >= 0
+  void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
+};
+
+/// What HtxSource did on the last frame.
+struct HtxFrameStats {
+  bool detected = false;      ///< the detector ran (false: frame skipped by detect_every, or no depth)
+  bool ground_found = false;  ///< the gravity alignment came from this frame's floor plane
+  std::size_t num_points = 0;  ///< preprocessed points (before the draw)
+  std::size_t num_boxes = 0;   ///< boxes reported (after the class and score filters)
+  double preprocess_ms = 0;    ///< wall time of preprocess + draw [ms]
+  double detect_ms = 0;        ///< wall time of the network + post-processing [ms]
+};
+
+/// The `htx` source (3DS-SLAM §III-B/C): per frame, preprocess() the depth image (back-projection,
+/// voxels, ground removal, outliers), gravity-align the cloud with the floor normal
+/// (upright_rotation; the last frame's alignment when no floor is found, the plain axis swap
+/// before any floor was seen), draw the detector input (make_detector_input), detect() with the
+/// HTx-lite network, keep boxes of the configured classes above min_score, and report them as
+/// DynamicObjects::boxes_3d (corners in the camera frame), which HdbscanMasker projects into the
+/// image (project_box) to gate its HDBSCAN filter.
+///
+/// With detect_every = k > 1 the detector runs on frames 0, k, 2k, ... of the sequence seen by
+/// this source; frames in between reuse the last detection's 3-D boxes unchanged (camera-frame
+/// corners, i.e. the object is assumed to stay where it was relative to the camera: the filter's
+/// box margin and its own carried regions absorb the motion of a few frames).
+/// @note Deterministic: the same frames in the same order give the same boxes (the draw's seed
+///       is input.seed mixed with the frame index). Keeps state (alignment, last boxes): call in
+///       frame order from one thread, as the pipeline's detection thread does.
+class HtxSource final : public DynamicObjectSource {
+ public:
+  /// The 3-D detector: upright cloud [n, 3] → boxes in that frame (Box3::label indexes the
+  /// class names). SparseDetector::detect by default; a test or another network can plug in here.
+  using DetectFn = std::function<std::vector<Box3>(Eigen::Ref<const Points3f>)>;
+
+  /// Uses a loaded detector (its config's class_names name the labels).
+  /// @throws ds3d::InvalidArgument on bad params, or a class of params.classes that the
+  ///   detector does not know (the message lists the known ones).
+  explicit HtxSource(std::shared_ptr<const SparseDetector> detector, HtxSourceParams params = {});
+  /// Uses any detection function. @throws like the other constructor; also for an empty `detect`.
+  HtxSource(DetectFn detect, std::vector<std::string> class_names, HtxSourceParams params = {});
+
+  /// Boxes of the configured classes in `frame` (camera-frame corners); none without depth.
+  /// @throws ds3d::InvalidArgument only for a depth image of the wrong type or size.
+  DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
+  [[nodiscard]] std::string name() const override { return "htx"; }
+  [[nodiscard]] const HtxFrameStats& last_stats() const noexcept { return stats_; }
+  /// The boxes of the last detection, in its upright frame (what the network returned, filtered).
+  [[nodiscard]] const std::vector<Box3>& last_boxes() const noexcept { return boxes_; }
+  /// The camera → upright rotation in use.
+  [[nodiscard]] const Eigen::Matrix3f& R_up_cam() const noexcept { return R_up_cam_; }
+  [[nodiscard]] const HtxSourceParams& params() const noexcept { return params_; }
+
+ private:
+  DetectFn detect_;
+  std::vector<std::int32_t> labels_;  // dynamic class indices; empty = all
+  HtxSourceParams params_;
+  Eigen::Matrix3f R_up_cam_;
+  std::size_t frame_count_ = 0;
+  std::vector<Box3> boxes_;
+  DynamicObjects last_objects_;
+  HtxFrameStats stats_;
+};
+
+/// Two sources in sequence, 3DS-SLAM's semantic-then-geometric order: `first` runs on the frame;
+/// `second` runs on the frame with the depth blanked (0 = no depth) inside the image boxes of
+/// `first`'s objects, so it only sees, and estimates its own motion from, what `first` left as
+/// static; the result is the union of both sources' objects (2-D boxes, 3-D boxes, and the
+/// pixel masks OR-ed). The masker downstream then filters the keypoints of both sets of boxes.
+/// @note Deterministic when both sources are. Not thread-safe (the sources keep state).
+class CompositeSource final : public DynamicObjectSource {
+ public:
+  /// @throws ds3d::InvalidArgument when a source is null.
+  CompositeSource(std::shared_ptr<DynamicObjectSource> first,
+                  std::shared_ptr<DynamicObjectSource> second);
+  DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
+  /// "<first>+<second>", e.g. "htx+geometric".
+  [[nodiscard]] std::string name() const override;
+  [[nodiscard]] const DynamicObjectSource& first() const noexcept { return *first_; }
+  [[nodiscard]] const DynamicObjectSource& second() const noexcept { return *second_; }
+
+ private:
+  std::shared_ptr<DynamicObjectSource> first_;
+  std::shared_ptr<DynamicObjectSource> second_;
+};
+
+/// Where the default HTx weights are looked for, in order: `<source tree>/models/NAME` (the
+/// compile-time DS3D_SOURCE_DIR), `<install prefix>/share/ds3d/models/NAME` (configure-time
+/// prefix), and `<directory of the running executable>/../share/ds3d/models/NAME` (a relocated
+/// install). NAME is kDefaultHtxWeights.
+[[nodiscard]] std::vector<std::filesystem::path> default_weights_candidates();
+/// File name of the default weights (issue 9 ships them).
+inline constexpr const char* kDefaultHtxWeights = "htx_lite_fast.safetensors";
+/// The first existing default_weights_candidates() entry.
+/// @throws ds3d::IoError naming every path tried when none exists.
+[[nodiscard]] std::filesystem::path find_default_weights();
+
+/// Options of make_dynamic_source for the sources that take any.
+struct DynamicSourceOptions {
+  std::filesystem::path weights{};  ///< htx weights; empty = find_default_weights()
+  HtxSourceParams htx{};            ///< htx parameters (detect_every, min_score, ...)
+};
+
+/// Builds the source named by a `--dynamic` option value: "none", "file:PATH", "geometric"
+/// (GeometricMotionSource with default parameters), "htx" (HtxSource, weights from `options`),
+/// or "A+B" with A and B any of these but none (CompositeSource: A, then B), e.g.
+/// "htx+geometric". A "file:" spec takes the rest of the string as its path.
+/// @throws ds3d::InvalidArgument for an unknown name or bad options; ds3d::IoError for an
+///   unreadable file or weights file (naming the path).
+[[nodiscard]] std::shared_ptr<DynamicObjectSource> make_dynamic_source(
+    const std::string& spec, const DynamicSourceOptions& options = {});
 
 }  // namespace ds3d::slam

@@ -94,6 +94,44 @@ struct DetectorOutput {
   Eigen::Matrix<float, Eigen::Dynamic, 4, Eigen::RowMajor> part_logits;
 };
 
+/// Options of make_detector_input() (htx spec §6.1 step 5).
+struct DetectorInputParams {
+  int num_points = 4096;   ///< points given to the detector, >= 1
+  std::uint64_t seed = 0;  ///< seed of the draw: the same seed and cloud give the same points
+  void validate() const;   ///< throws ds3d::InvalidArgument naming the bad field
+};
+
+/// One detector input: a gravity-aligned cloud drawn from a camera-frame cloud.
+struct DetectorInput {
+  Points3f points;                  ///< [num_points, 3] upright frame (X right, Y fwd, Z up) [m]
+  std::vector<std::uint32_t> rows;  ///< for each point, its row in the camera-frame cloud
+  Eigen::Matrix3f R_up_cam = Eigen::Matrix3f::Identity();  ///< p_up = R_up_cam * p_cam
+};
+
+/// Rotation from the camera frame (x right, y down, z forward) to the upright depth frame of
+/// box3.hpp (X right, Y forward, Z up) that maps `up_cam` (the floor normal seen by the camera,
+/// e.g. PreprocessResult::ground_plane.head<3>()) to +Z: the axis swap (x, y, z) → (x, z, −y)
+/// followed by the smallest rotation taking the swapped normal to +Z (the role of SUN RGB-D's
+/// tilt matrix, htx spec §6.1 step 3). A camera-frame −y gives the plain axis swap.
+/// @param up_cam up direction in the camera frame, finite and non-zero (any length)
+/// @throws ds3d::InvalidArgument for a zero or non-finite vector, or one pointing down
+///   (more than 90° from camera −y: a floor is never above the camera's horizon).
+/// @note O(1); the camera's heading (rotation about the vertical) is kept.
+[[nodiscard]] Eigen::Matrix3f upright_rotation(const Eigen::Vector3d& up_cam);
+
+/// Builds the detector input from a preprocessed camera-frame cloud (preprocess.hpp): rotates
+/// it with `R_up_cam` and draws `num_points` rows with a seeded generator. With more rows than
+/// num_points they are drawn without replacement; with fewer, every row is taken once and the
+/// rest drawn with replacement (3DETR draws with replacement then; keeping every point loses
+/// nothing). The drawn rows are in random order (FPS starts at row 0, the ball query takes the
+/// first rows by index, so a spatially sorted order would bias both).
+/// @param cloud_cam [n, 3] camera-frame points [m], finite; n = 0 gives an empty input
+/// @throws ds3d::InvalidArgument for bad params or a non-finite point (naming its row).
+/// @note O(n + num_points); deterministic for a given seed on every platform (own generator).
+[[nodiscard]] DetectorInput make_detector_input(Eigen::Ref<const Points3f> cloud_cam,
+                                                const Eigen::Matrix3f& R_up_cam,
+                                                const DetectorInputParams& params = {});
+
 /// The HTx-lite detector. Immutable after load(); `detect()` and `run()` are const and safe to
 /// call concurrently from several threads (no shared scratch state).
 class SparseDetector {

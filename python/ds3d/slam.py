@@ -8,7 +8,8 @@ from ._ds3d import Slam, SlamConfig, _run_slam
 __all__ = ["Slam", "SlamConfig", "run_slam"]
 
 
-def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None):
+def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
+             dynamic="none", weights=None, detect_every=1, min_score=None):
     """Runs the SLAM pipeline on a TUM-layout folder (rgb.txt, depth.txt).
 
     Args:
@@ -18,14 +19,25 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None)
         max_frames: 0 for all frames, else the first ``max_frames``.
         threaded: run the pipeline stages in threads (same result either way).
         config: a ``ds3d.SlamConfig`` (its camera is replaced by the dataset's).
+        dynamic: source of moving objects, as ``ds3d-slam --dynamic``: ``"none"``,
+            ``"geometric"``, ``"htx"``, ``"file:PATH"`` or ``"A+B"`` (e.g. ``"htx+geometric"``);
+            any other than none filters keypoints with the box-gated HDBSCAN filter.
+        weights: HTx weights file for ``htx`` (None: models/htx_lite_fast.safetensors of the
+            source tree, else <prefix>/share/ds3d/models/).
+        detect_every: run the HTx detector on every k-th frame (k >= 1; boxes carried between).
+        min_score: HTx box score threshold in [0, 1] (None: the library default, 0.3).
 
     Returns:
         (N, 8) float64 array: timestamp tx ty tz qx qy qz qw (camera-to-world) per frame.
 
     Raises:
-        ValueError: bad arguments; RuntimeError: unreadable dataset.
+        ValueError: bad arguments; RuntimeError: unreadable dataset or weights file.
     """
     if int(max_frames) < 0:
         raise ValueError(f"ds3d.run_slam: max_frames must be >= 0 (got {max_frames})")
+    if int(detect_every) < 1:
+        raise ValueError(f"ds3d.run_slam: detect_every must be >= 1 (got {detect_every})")
     return _run_slam(os.fspath(dataset_dir), "" if camera is None else os.fspath(camera),
-                     int(max_frames), bool(threaded), config)
+                     int(max_frames), bool(threaded), config, str(dynamic),
+                     "" if weights is None else os.fspath(weights), int(detect_every),
+                     None if min_score is None else float(min_score))

@@ -40,14 +40,21 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
-    "                 [--dynamic none|geometric|file:PATH] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
+    "                 [--dynamic none|geometric|htx|htx+geometric|file:PATH] [--weights PATH]\n"
+    "                 [--detect-every K] [--min-score S] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
     "                 [--fusion] [--local-window N] [--bf BF] [--cv-threads N] [--quiet]\n"
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
     "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present.\n"
     "--dynamic: where boxes of moving objects come from: none (keep every keypoint), geometric\n"
-    "  (multi-view motion, no learned weights) or file:PATH (JSON lines, see detections.hpp);\n"
-    "  keypoints in the boxes go through the box-gated HDBSCAN filter (dynamic_filter.hpp).\n"
+    "  (multi-view motion, no learned weights), htx (the HTx-lite 3-D detector on the preprocessed\n"
+    "  depth), file:PATH (JSON lines, see detections.hpp), or A+B: A, then B on what A left\n"
+    "  (htx+geometric is 3DS-SLAM's semantic-then-geometric order); keypoints in the boxes go\n"
+    "  through the box-gated HDBSCAN filter (dynamic_filter.hpp).\n"
+    "--weights: HTx weights file (default: models/htx_lite_fast.safetensors of the source tree,\n"
+    "  else <prefix>/share/ds3d/models/). --detect-every K: run the detector on every K-th frame\n"
+    "  (default 1; the frames between reuse its boxes). --min-score S: detector score threshold\n"
+    "  in [0, 1] (default 0.3).\n"
     "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes (blue).\n"
     "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
     "  default: it hurts on dynamic scenes without a dynamic filter, see docs/slam.md).\n"
@@ -60,6 +67,9 @@ struct Args {
   std::string camera;
   std::filesystem::path out = "trajectory.txt";
   std::string dynamic = "none";
+  std::filesystem::path weights;
+  int detect_every = 1;
+  float min_score = -1.0F;  // < 0 = the HtxSourceParams default
   std::size_t max_frames = 0;
   std::filesystem::path stats;
   std::filesystem::path viz;
@@ -108,6 +118,19 @@ Args parse(int argc, char** argv) {
       a.out = value();
     } else if (s == "--dynamic") {
       a.dynamic = value();
+    } else if (s == "--weights") {
+      a.weights = value();
+      if (a.weights.empty()) usage_error("--weights needs a non-empty path");
+    } else if (s == "--detect-every") {
+      a.detect_every = static_cast<int>(parse_int(s, value(), 1));
+    } else if (s == "--min-score") {
+      const std::string v = value();
+      char* end = nullptr;
+      const float x = std::strtof(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(x >= 0.0F && x <= 1.0F)) {
+        usage_error("--min-score expects a number in [0, 1] (got '" + v + "')");
+      }
+      a.min_score = x;
     } else if (s == "--max-frames") {
       a.max_frames = static_cast<std::size_t>(parse_int(s, value(), 0));
     } else if (s == "--stats") {
@@ -140,14 +163,9 @@ Args parse(int argc, char** argv) {
   }
   if (pos.size() != 1) usage_error("expected exactly one DATASET_DIR");
   a.dataset = pos[0];
-  const bool known = a.dynamic == "none" || a.dynamic == "geometric" ||
-                     (a.dynamic.rfind("file:", 0) == 0 && a.dynamic.size() > 5);
-  if (!known) {
-    std::ostringstream msg;
-    msg << "--dynamic '" << a.dynamic << "' is "
-        << (a.dynamic == "htx" ? "not wired yet" : "unknown")
-        << " (available: none, geometric, file:PATH)";
-    usage_error(msg.str());
+  const bool uses_htx = a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
+  if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F)) {
+    usage_error("--weights, --detect-every and --min-score need --dynamic htx or htx+...");
   }
   return a;
 }
@@ -229,6 +247,17 @@ void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
 }
 
 int run(const Args& a) {
+  // The source first: a bad --dynamic or --weights fails before any image is read.
+  ds3d::slam::DynamicSourceOptions sopt;
+  sopt.weights = a.weights;
+  sopt.htx.detect_every = a.detect_every;
+  if (a.min_score >= 0.0F) sopt.htx.min_score = a.min_score;
+  std::shared_ptr<ds3d::slam::DynamicObjectSource> source;
+  try {
+    source = ds3d::slam::make_dynamic_source(a.dynamic, sopt);
+  } catch (const ds3d::InvalidArgument& e) {
+    usage_error(e.what());
+  }
   ds3d::DatasetOptions dopt;
   if (!a.camera.empty()) {
     const bool preset = a.camera == "tum1" || a.camera == "tum2" || a.camera == "tum3" ||
@@ -247,8 +276,6 @@ int run(const Args& a) {
   if (a.local_window > 0) cfg.local_window = a.local_window;
   if (a.bf > 0) cfg.bf = a.bf;
   cfg.mapping_thread = a.threads;
-  std::shared_ptr<ds3d::slam::DynamicObjectSource> source =
-      ds3d::slam::make_dynamic_source(a.dynamic);
   std::shared_ptr<RecordingMasker> masker;
   if (a.dynamic != "none") {
     masker = std::make_shared<RecordingMasker>();
@@ -330,6 +357,7 @@ int run(const Args& a) {
     };
     js << "{\n  \"dataset\": \"" << json_escape(a.dataset.string()) << "\",\n"
        << "  \"dynamic\": \"" << json_escape(a.dynamic) << "\",\n"
+       << "  \"detect_every\": " << a.detect_every << ",\n"
        << "  \"frames\": " << results.size() << ",\n"
        << "  \"tracked_frames\": " << tracked << ",\n"
        << "  \"lost_frames\": " << lost << ",\n"

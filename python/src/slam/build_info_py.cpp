@@ -16,6 +16,9 @@ void bind_build_info(py::module_& m) {
       .def_readonly("compiler", &ds3d::BuildInfo::compiler)
       .def_readonly("debug", &ds3d::BuildInfo::debug)
       .def_readonly("hardware_threads", &ds3d::BuildInfo::hardware_threads)
+      .def_readonly("simd", &ds3d::BuildInfo::simd)
+      .def_readonly("simd_isa", &ds3d::BuildInfo::simd_isa)
+      .def_readonly("eigen_max_align_bytes", &ds3d::BuildInfo::eigen_max_align_bytes)
       .def("__repr__", [](const ds3d::BuildInfo&) { return ds3d::build_info_string(); });
   m.def("build_info", &ds3d::build_info, "Build information (see include/ds3d/build_info.hpp).");
 }

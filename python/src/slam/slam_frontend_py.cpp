@@ -11,6 +11,7 @@
 #include <string>
 
 #include "ds3d/dataset.hpp"
+#include "ds3d/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
 #include "ds3d/slam_frontend.hpp"
 
@@ -162,13 +163,22 @@ void bind_slam_frontend(py::module_& m) {
   m.def(
       "_run_slam",
       [](const std::string& dataset_dir, const std::string& camera, std::size_t max_frames, bool threaded,
-         std::optional<FrontendConfig> config) {
+         std::optional<FrontendConfig> config, const std::string& dynamic, const std::string& weights,
+         int detect_every, std::optional<float> min_score) {
+        ds3d::slam::DynamicSourceOptions sopt;
+        sopt.weights = weights;
+        sopt.htx.detect_every = detect_every;
+        if (min_score) sopt.htx.min_score = *min_score;
+        // The source first, as ds3d-slam does: bad options fail before any image is read.
+        auto source = ds3d::slam::make_dynamic_source(dynamic, sopt);
+        std::shared_ptr<ds3d::slam::DynamicFeatureMasker> masker;
+        if (dynamic != "none") masker = std::make_shared<ds3d::slam::HdbscanMasker>();
         ds3d::DatasetOptions opt;
         if (!camera.empty()) opt.camera = camera_from(camera);
         const auto ds = ds3d::RgbdDataset::open(dataset_dir, opt);
         FrontendConfig cfg = config.value_or(FrontendConfig{});
         cfg.camera = ds.camera();
-        ds3d::slam::SlamFrontend slam(cfg);
+        ds3d::slam::SlamFrontend slam(cfg, source, masker);
         ds3d::slam::PipelineOptions po;
         po.threaded = threaded;
         std::vector<ds3d::slam::FramePose> poses;
@@ -180,5 +190,6 @@ void bind_slam_frontend(py::module_& m) {
         return poses_to_array(poses);
       },
       py::arg("dataset_dir"), py::arg("camera") = "", py::arg("max_frames") = 0, py::arg("threaded") = true,
-      py::arg("config") = py::none(), "Internal: see ds3d.run_slam.");
+      py::arg("config") = py::none(), py::arg("dynamic") = "none", py::arg("weights") = "",
+      py::arg("detect_every") = 1, py::arg("min_score") = py::none(), "Internal: see ds3d.run_slam.");
 }

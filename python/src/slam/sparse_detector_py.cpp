@@ -104,4 +104,28 @@ void bind_sparse_detector(py::module_& m) {
           py::arg("points"), py::arg("num_threads") = 1, py::arg("part_logits") = true,
           "Full forward pass: dict with boxes (M, 9), centre_indices, query_indices, proposals (q, 9),\n"
           "objectness (q,), class_prob (q, K) and part_logits (n, 4) (empty unless part_logits).");
+
+  m.def(
+      "upright_rotation",
+      [](const Eigen::Vector3d& up_cam) { return Eigen::Matrix3f(ds3d::upright_rotation(up_cam)); },
+      py::arg("up_cam"),
+      "(3, 3) float32 rotation camera -> upright detector frame mapping up_cam (the floor normal in\n"
+      "the camera frame, e.g. PreprocessResult.ground_plane[:3]) to +Z; ValueError for a zero or\n"
+      "downward vector. See include/ds3d/sparse_detector.hpp.");
+  m.def(
+      "make_detector_input",
+      [](const Eigen::Ref<const ds3d::Points3f>& cloud_cam, const Eigen::Matrix3f& R_up_cam, int num_points,
+         std::uint64_t seed) {
+        ds3d::DetectorInput in;
+        {
+          py::gil_scoped_release release;
+          in = ds3d::make_detector_input(cloud_cam, R_up_cam, {.num_points = num_points, .seed = seed});
+        }
+        return py::make_tuple(ds3d::Points3f(in.points),
+                              py::array_t<std::uint32_t>(static_cast<py::ssize_t>(in.rows.size()), in.rows.data()));
+      },
+      py::arg("cloud_cam"), py::arg("R_up_cam"), py::arg("num_points") = 4096, py::arg("seed") = 0,
+      "The detector input exactly as ds3d-slam --dynamic htx builds it (htx spec 6.1 step 5):\n"
+      "(points (num_points, 3) float32 upright frame, rows (num_points,) uint32 into cloud_cam).\n"
+      "The source passes seed mixed with the frame index; see include/ds3d/sparse_detector.hpp.");
 }

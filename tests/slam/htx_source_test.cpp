@@ -1,0 +1,445 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// Tests of the `htx` dynamic-object source (HtxSource), the detector input it builds
+// (upright_rotation, make_detector_input), CompositeSource, the factory and the ds3d-slam options.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "ds3d/dynamic_sources.hpp"
+#include "ds3d/errors.hpp"
+#include "ds3d/sparse_detector.hpp"
+#include "ds3d/synth.hpp"
+#include "support/files.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using ds3d::Box3;
+using ds3d::Points3f;
+using ds3d::slam::DynamicObjects;
+using ds3d::slam::FrameInput;
+using ds3d::slam::HtxSource;
+using ds3d::slam::HtxSourceParams;
+
+fs::path fixture_weights() { return ds3d::test::data_path("htx/tiny_weights.safetensors"); }
+
+FrameInput to_input(const ds3d::synth::SynthFrame& f) {
+  FrameInput in;
+  in.index = f.index;
+  in.timestamp = f.timestamp;
+  in.rgb = f.rgb;
+  in.depth = f.depth;
+  return in;
+}
+
+ds3d::synth::SynthOptions scene_options(int frames) {
+  ds3d::synth::SynthOptions o;
+  o.scenario = ds3d::synth::Scenario::kWalkingXyz;
+  o.num_frames = frames;
+  o.seed = 7;
+  o.num_humans = 1;
+  return o;
+}
+
+TEST(UprightRotation, SwapsAxesAndLevelsTheFloorNormal) {
+  const Eigen::Matrix3f R = ds3d::upright_rotation(Eigen::Vector3d(0, -1, 0));
+  // camera x right, y down, z forward -> upright X right, Y forward, Z up
+  EXPECT_TRUE((R * Eigen::Vector3f(1, 0, 0)).isApprox(Eigen::Vector3f(1, 0, 0), 1e-6F));
+  EXPECT_TRUE((R * Eigen::Vector3f(0, 0, 1)).isApprox(Eigen::Vector3f(0, 1, 0), 1e-6F));
+  EXPECT_TRUE((R * Eigen::Vector3f(0, -1, 0)).isApprox(Eigen::Vector3f(0, 0, 1), 1e-6F));
+  // A camera pitched down by 20°: the floor normal seen by it maps to +Z, rotation is proper.
+  const Eigen::Vector3d up =
+      Eigen::AngleAxisd(0.35, Eigen::Vector3d::UnitX()) * Eigen::Vector3d(0, -1, 0);
+  const Eigen::Matrix3f T = ds3d::upright_rotation(up * 3.0);
+  EXPECT_TRUE((T * up.cast<float>()).isApprox(Eigen::Vector3f(0, 0, 1), 1e-6F));
+  EXPECT_NEAR(T.determinant(), 1.0F, 1e-5F);
+  EXPECT_TRUE((T * T.transpose()).isIdentity(1e-5F));
+  EXPECT_THROW((void)ds3d::upright_rotation(Eigen::Vector3d::Zero()), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::upright_rotation(Eigen::Vector3d(0, 1, 0)), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::upright_rotation(Eigen::Vector3d(0, std::nan(""), 0)),
+               ds3d::InvalidArgument);
+}
+
+TEST(MakeDetectorInput, DrawsDeterministicallyWithAndWithoutReplacement) {
+  Points3f cloud(1000, 3);
+  for (Eigen::Index i = 0; i < cloud.rows(); ++i) {
+    cloud.row(i) << static_cast<float>(i) * 0.01F, -0.5F, 2.0F + static_cast<float>(i % 7) * 0.1F;
+  }
+  const Eigen::Matrix3f R = ds3d::upright_rotation(Eigen::Vector3d(0, -1, 0));
+  // More points than asked: a draw without replacement.
+  const auto a = ds3d::make_detector_input(cloud, R, {.num_points = 256, .seed = 3});
+  ASSERT_EQ(a.points.rows(), 256);
+  ASSERT_EQ(a.rows.size(), 256U);
+  EXPECT_EQ(std::set<std::uint32_t>(a.rows.begin(), a.rows.end()).size(), 256U);
+  for (std::size_t i = 0; i < a.rows.size(); ++i) {
+    const Eigen::Vector3f want = R * cloud.row(a.rows[i]).transpose();
+    EXPECT_TRUE(a.points.row(static_cast<Eigen::Index>(i)).transpose().isApprox(want));
+  }
+  const auto b = ds3d::make_detector_input(cloud, R, {.num_points = 256, .seed = 3});
+  EXPECT_EQ(a.rows, b.rows);
+  EXPECT_NE(a.rows, ds3d::make_detector_input(cloud, R, {.num_points = 256, .seed = 4}).rows);
+  // Fewer points than asked: every row appears, the rest are repeats.
+  const auto c = ds3d::make_detector_input(cloud, R, {.num_points = 4096, .seed = 3});
+  ASSERT_EQ(c.points.rows(), 4096);
+  EXPECT_EQ(std::set<std::uint32_t>(c.rows.begin(), c.rows.end()).size(), 1000U);
+  EXPECT_TRUE(c.points.allFinite());
+  EXPECT_EQ(ds3d::make_detector_input(Points3f(0, 3), R).points.rows(), 0);
+  EXPECT_THROW((void)ds3d::make_detector_input(cloud, R, {.num_points = 0}), ds3d::InvalidArgument);
+  cloud(5, 1) = std::nanf("");
+  EXPECT_THROW((void)ds3d::make_detector_input(cloud, R), ds3d::InvalidArgument);
+}
+
+TEST(HtxSource, RejectsBadParamsAndUnknownClasses) {
+  const auto none = [](Eigen::Ref<const Points3f>) { return std::vector<Box3>{}; };
+  const std::vector<std::string> names{"person"};
+  EXPECT_THROW(HtxSource(none, names, {.min_score = 1.5F}), ds3d::InvalidArgument);
+  EXPECT_THROW(HtxSource(none, names, {.detect_every = 0}), ds3d::InvalidArgument);
+  EXPECT_THROW(HtxSource(none, names, {.num_threads = -1}), ds3d::InvalidArgument);
+  EXPECT_THROW(HtxSource(HtxSource::DetectFn{}, names), ds3d::InvalidArgument);
+  try {
+    HtxSource s(none, {"chair", "table"});
+    FAIL() << "expected InvalidArgument";
+  } catch (const ds3d::InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("'person'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("chair, table"), std::string::npos) << e.what();
+  }
+  // No depth: nothing, and the detector is not called.
+  int calls = 0;
+  HtxSource s(
+      [&](Eigen::Ref<const Points3f>) {
+        ++calls;
+        return std::vector<Box3>{};
+      },
+      names);
+  FrameInput f;
+  f.rgb = cv::Mat::zeros(480, 640, CV_8UC3);
+  EXPECT_TRUE(s.detect(f, ds3d::PinholeCamera{}).boxes_3d.empty());
+  EXPECT_EQ(calls, 0);
+  f.depth = cv::Mat::zeros(10, 10, CV_16UC1);
+  EXPECT_THROW((void)s.detect(f, ds3d::PinholeCamera{}), ds3d::InvalidArgument);
+}
+
+// A fake detector returning the ground-truth box of the synthetic human (known box): the source
+// must hand it to the masker in the camera frame, and the masker must drop the keypoints on the
+// human and keep those away from it.
+TEST(HtxSource, KnownBoxReachesTheFilterAndDropsTheKeypointsInside) {
+  const ds3d::synth::SyntheticScene scene(scene_options(12));
+  const ds3d::PinholeCamera camera = scene.options().camera;
+  const ds3d::synth::SynthFrame frame = scene.render(10);
+  ASSERT_FALSE(frame.boxes.empty());
+  const auto& human = frame.boxes[0];
+  ASSERT_GT(human.visible_pixels, 2000);
+
+  HtxSource* source = nullptr;
+  std::vector<Box3> given;
+  std::size_t points_seen = 0;
+  const auto fake = [&](Eigen::Ref<const Points3f> xyz) {
+    points_seen = static_cast<std::size_t>(xyz.rows());
+    // Human corners (both yaw signs: a box that holds the human whatever the convention) →
+    // camera → this frame's upright frame; the known box is their axis-aligned hull.
+    const Eigen::Isometry3d T_cam_world = frame.T_world_cam.inverse();
+    const Eigen::Matrix3d R_up = source->R_up_cam().cast<double>();
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9);
+    Eigen::Vector3d hi = -lo;
+    for (const double sign : {1.0, -1.0}) {
+      const Eigen::Matrix3d Rz(Eigen::AngleAxisd(sign * human.yaw, Eigen::Vector3d::UnitZ()));
+      for (int k = 0; k < 8; ++k) {
+        const Eigen::Vector3d local((k & 1) ? 0.5 : -0.5, (k & 2) ? 0.5 : -0.5,
+                                    (k & 4) ? 0.5 : -0.5);
+        const Eigen::Vector3d w = human.center + Rz * local.cwiseProduct(human.size);
+        const Eigen::Vector3d up = R_up * (T_cam_world * w);
+        lo = lo.cwiseMin(up);
+        hi = hi.cwiseMax(up);
+      }
+    }
+    Box3 b;
+    b.centre = ((lo + hi) / 2).cast<float>();
+    b.size = (hi - lo).cast<float>();
+    b.score = 0.9F;
+    b.objectness = 0.95F;
+    b.label = 0;
+    Box3 other = b;  // a second class, filtered out by `classes`
+    other.label = 1;
+    other.centre.x() += 5.0F;
+    given = {b, other};
+    return given;
+  };
+  HtxSource src(fake, {"person", "chair"});
+  source = &src;
+  const FrameInput in = to_input(frame);
+  const DynamicObjects obj = src.detect(in, camera);
+  EXPECT_TRUE(src.last_stats().detected);
+  EXPECT_TRUE(src.last_stats().ground_found);
+  EXPECT_EQ(points_seen, 4096U);
+  ASSERT_EQ(obj.boxes_3d.size(), 1U);
+  ASSERT_EQ(src.last_boxes().size(), 1U);
+  const auto corners = ds3d::box::corners(given[0]);
+  const Eigen::Matrix3f R_cam_up = src.R_up_cam().transpose();
+  for (int k = 0; k < 8; ++k) {
+    const Eigen::Vector3f want = R_cam_up * corners[static_cast<std::size_t>(k)].cast<float>();
+    EXPECT_TRUE(obj.boxes_3d[0].row(k).transpose().isApprox(want, 1e-5F)) << k;
+  }
+
+  ds3d::slam::FrontendConfig cfg;
+  cfg.camera = camera;
+  const ds3d::slam::SlamFrontend slam(cfg);
+  const ds3d::slam::PreparedFrame pf = slam.extract(in);
+  ds3d::slam::HdbscanMasker masker;
+  const auto mask = masker.mask(in, camera, pf.features, obj);
+  ASSERT_EQ(mask.size(), pf.features.size());
+  ASSERT_EQ(masker.last_result().boxes.size(), 1U);
+  const ds3d::ImageBox ibox = masker.last_result().boxes[0].box;
+  int on_human = 0;
+  int on_human_dropped = 0;
+  int far = 0;
+  int far_dropped = 0;
+  for (std::size_t i = 0; i < mask.size(); ++i) {
+    const cv::Point2f p = pf.features.keypoints[i].pt;
+    const int x = std::clamp(static_cast<int>(std::lround(p.x)), 0, camera.width - 1);
+    const int y = std::clamp(static_cast<int>(std::lround(p.y)), 0, camera.height - 1);
+    if (frame.dynamic_mask.at<std::uint8_t>(y, x) != 0U && pf.features.depth[i] > 0.0F) {
+      ++on_human;
+      on_human_dropped += mask[i] != 0U ? 1 : 0;
+    } else if (p.x < ibox.x_min - 20 || p.x > ibox.x_max + 20 || p.y < ibox.y_min - 20 ||
+               p.y > ibox.y_max + 20) {
+      ++far;
+      far_dropped += mask[i] != 0U ? 1 : 0;
+    }
+  }
+  ASSERT_GE(on_human, 20);
+  EXPECT_GE(on_human_dropped, on_human * 8 / 10) << on_human_dropped << " of " << on_human;
+  EXPECT_GT(far, 100);
+  EXPECT_EQ(far_dropped, 0);
+
+  // Score threshold: the same box at score 0.2 is dropped by the default min_score 0.3.
+  HtxSource low(
+      [&](Eigen::Ref<const Points3f> xyz) {
+        auto b = fake(xyz);
+        for (auto& x : b) x.score = 0.2F;
+        return b;
+      },
+      {"person", "chair"});
+  source = &low;
+  EXPECT_TRUE(low.detect(in, camera).boxes_3d.empty());
+}
+
+TEST(HtxSource, DetectEveryKthFrameCarriesTheLastBoxes) {
+  const ds3d::synth::SyntheticScene scene(scene_options(6));
+  std::vector<std::size_t> called;
+  std::size_t current = 0;
+  const auto fake = [&](Eigen::Ref<const Points3f>) {
+    called.push_back(current);
+    Box3 b;
+    b.centre = Eigen::Vector3f(0.0F, 2.0F + 0.1F * static_cast<float>(current), 0.0F);
+    b.size = Eigen::Vector3f(0.5F, 0.5F, 1.7F);
+    b.score = 0.9F;
+    return std::vector<Box3>{b};
+  };
+  HtxSource src(fake, {"person"}, {.detect_every = 3});
+  std::vector<DynamicObjects> out;
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    current = i;
+    out.push_back(src.detect(to_input(scene.render(i)), scene.options().camera));
+    EXPECT_EQ(src.last_stats().detected, i % 3 == 0) << i;
+  }
+  EXPECT_EQ(called, (std::vector<std::size_t>{0, 3}));
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    ASSERT_EQ(out[i].boxes_3d.size(), 1U);
+    EXPECT_EQ(out[i].boxes_3d[0], out[i - i % 3].boxes_3d[0]) << i;
+  }
+  EXPECT_NE(out[0].boxes_3d[0], out[3].boxes_3d[0]);
+}
+
+// The committed random-weight fixture through the whole pipeline: runs, is deterministic, and
+// whatever boxes the detector keeps reach the filter.
+TEST(HtxSource, FixtureWeightsRunThroughThePipelineDeterministically) {
+  const ds3d::synth::SyntheticScene scene(scene_options(5));
+  const auto detector =
+      std::make_shared<const ds3d::SparseDetector>(ds3d::SparseDetector::load(fixture_weights()));
+  struct Run {
+    std::vector<std::vector<Box3>> boxes;
+    std::vector<std::size_t> filter_boxes;
+    std::vector<int> num_dynamic;
+  };
+  const auto run_once = [&] {
+    // min_score 0 and every class: random weights give low scores, and the point here is that
+    // every box the source reports reaches the masker.
+    auto src = std::make_shared<HtxSource>(detector, HtxSourceParams{.min_score = 0.0F, .classes = {}});
+    auto masker = std::make_shared<ds3d::slam::HdbscanMasker>();
+    ds3d::slam::FrontendConfig cfg;
+    cfg.camera = scene.options().camera;
+    cfg.mapping_thread = false;
+    ds3d::slam::SlamFrontend slam(cfg, src, masker);
+    Run r;
+    for (std::size_t i = 0; i < scene.size(); ++i) {
+      ds3d::slam::PreparedFrame pf = slam.extract(to_input(scene.render(i)));
+      slam.detect_dynamic(pf);
+      EXPECT_TRUE(src->last_stats().detected);
+      EXPECT_EQ(pf.objects.boxes_3d.size(), src->last_boxes().size());
+      for (const auto& c : pf.objects.boxes_3d) EXPECT_TRUE(c.allFinite());
+      slam.filter_dynamic(pf);
+      std::size_t projected = 0;
+      for (const auto& c : pf.objects.boxes_3d) {
+        projected += ds3d::project_box(c, cfg.camera).has_value() ? 1U : 0U;
+      }
+      std::size_t used = 0;
+      for (const auto& b : masker->last_result().boxes) used += b.carried ? 0U : 1U;
+      EXPECT_EQ(used + masker->last_result().num_ignored_boxes, projected) << i;
+      r.boxes.push_back(src->last_boxes());
+      r.filter_boxes.push_back(used);
+      r.num_dynamic.push_back(masker->last_result().num_dynamic);
+      (void)slam.track_prepared(std::move(pf));
+    }
+    return r;
+  };
+  const Run a = run_once();
+  const Run b = run_once();
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < a.boxes.size(); ++i) {
+    total += a.boxes[i].size();
+    ASSERT_EQ(a.boxes[i].size(), b.boxes[i].size());
+    for (std::size_t k = 0; k < a.boxes[i].size(); ++k) {
+      EXPECT_EQ(a.boxes[i][k].centre, b.boxes[i][k].centre);
+      EXPECT_EQ(a.boxes[i][k].size, b.boxes[i][k].size);
+      EXPECT_EQ(a.boxes[i][k].score, b.boxes[i][k].score);
+    }
+  }
+  EXPECT_EQ(a.filter_boxes, b.filter_boxes);
+  EXPECT_EQ(a.num_dynamic, b.num_dynamic);
+  EXPECT_GT(total, 0U) << "the fixture detector kept no box at all";
+}
+
+TEST(CompositeSource, SecondSourceSeesTheFrameWithoutTheFirstsObjects) {
+  struct Fixed final : ds3d::slam::DynamicObjectSource {
+    DynamicObjects out;
+    cv::Mat seen_depth;
+    DynamicObjects detect(const FrameInput& f, const ds3d::PinholeCamera&) override {
+      seen_depth = f.depth.clone();
+      return out;
+    }
+    [[nodiscard]] std::string name() const override { return "fixed"; }
+  };
+  auto a = std::make_shared<Fixed>();
+  a->out.boxes_2d.emplace_back(100.0F, 100.0F, 50.0F, 80.0F);
+  a->out.scores.push_back(0.8F);
+  auto b = std::make_shared<Fixed>();
+  Eigen::Matrix<float, 8, 3> c;
+  c << -0.2F, -0.2F, 2, 0.2F, -0.2F, 2, 0.2F, 0.2F, 2, -0.2F, 0.2F, 2, -0.2F, -0.2F, 2.4F, 0.2F,
+      -0.2F, 2.4F, 0.2F, 0.2F, 2.4F, -0.2F, 0.2F, 2.4F;
+  b->out.boxes_3d.push_back(c);
+  ds3d::slam::CompositeSource both(a, b);
+  EXPECT_EQ(both.name(), "fixed+fixed");
+  FrameInput f;
+  f.depth = cv::Mat(480, 640, CV_16UC1, cv::Scalar(10000));
+  const DynamicObjects o = both.detect(f, ds3d::PinholeCamera{});
+  ASSERT_EQ(o.boxes_2d.size(), 1U);
+  ASSERT_EQ(o.scores.size(), 1U);
+  ASSERT_EQ(o.boxes_3d.size(), 1U);
+  EXPECT_EQ(cv::countNonZero(f.depth != 10000), 0);               // caller's image untouched
+  EXPECT_EQ(cv::countNonZero(a->seen_depth != 10000), 0);         // first sees everything
+  EXPECT_EQ(b->seen_depth.at<std::uint16_t>(140, 125), 0);        // inside the first's box
+  EXPECT_EQ(b->seen_depth.at<std::uint16_t>(300, 400), 10000);    // elsewhere
+  EXPECT_EQ(b->seen_depth.at<std::uint16_t>(140, 160), 10000);    // right of the box
+  EXPECT_THROW(ds3d::slam::CompositeSource(a, nullptr), ds3d::InvalidArgument);
+}
+
+TEST(DynamicSources, MakeHtxAndCompositeFromSpec) {
+  ds3d::slam::DynamicSourceOptions opt;
+  opt.weights = fixture_weights();
+  opt.htx.detect_every = 2;
+  const auto htx = ds3d::slam::make_dynamic_source("htx", opt);
+  EXPECT_EQ(htx->name(), "htx");
+  ASSERT_NE(dynamic_cast<HtxSource*>(htx.get()), nullptr);
+  EXPECT_EQ(dynamic_cast<HtxSource*>(htx.get())->params().detect_every, 2);
+  EXPECT_EQ(ds3d::slam::make_dynamic_source("htx+geometric", opt)->name(), "htx+geometric");
+  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx+bogus", opt), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("none+htx", opt), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx+", opt), ds3d::InvalidArgument);
+  opt.weights = "/nonexistent/w.safetensors";
+  try {
+    (void)ds3d::slam::make_dynamic_source("htx", opt);
+    FAIL() << "expected IoError";
+  } catch (const ds3d::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/w.safetensors"), std::string::npos);
+  }
+  // The default weights: the source tree is the first place looked at.
+  const auto cands = ds3d::slam::default_weights_candidates();
+  ASSERT_FALSE(cands.empty());
+  EXPECT_EQ(cands[0], fs::path(DS3D_SOURCE_DIR) / "models" / "htx_lite_fast.safetensors");
+  bool any = false;
+  for (const auto& p : cands) any = any || fs::exists(p);
+  if (!any) {
+    try {
+      (void)ds3d::slam::make_dynamic_source("htx");
+      FAIL() << "expected IoError";
+    } catch (const ds3d::IoError& e) {
+      EXPECT_NE(std::string(e.what()).find(cands[0].string()), std::string::npos) << e.what();
+    }
+  } else {
+    EXPECT_EQ(ds3d::slam::find_default_weights(), *std::find_if(cands.begin(), cands.end(),
+                                                                [](const fs::path& p) { return fs::exists(p); }));
+  }
+}
+
+struct CliResult {
+  int code = -1;
+  std::string output;
+};
+CliResult run_cli(const std::string& args) {
+  const fs::path exe = fs::path(DS3D_BINARY_DIR) / "bin" / "ds3d-slam";
+  CliResult r;
+  FILE* p = ::popen((exe.string() + " " + args + " 2>&1").c_str(), "r");
+  if (p == nullptr) return r;
+  char buf[4096];
+  for (std::size_t n; (n = std::fread(buf, 1, sizeof(buf), p)) > 0;) r.output.append(buf, n);
+  const int status = ::pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+TEST(Ds3dSlamCli, HtxOptions) {
+  if (!fs::exists(fs::path(DS3D_BINARY_DIR) / "bin" / "ds3d-slam")) GTEST_SKIP() << "not built";
+  const fs::path dir = fs::temp_directory_path() / "ds3d_htx_cli_test";
+  fs::remove_all(dir);
+  (void)ds3d::synth::generate_sequence(dir, scene_options(4));
+  const std::string ds = "'" + dir.string() + "'";
+  // bad --weights: a runtime error naming the file
+  auto r = run_cli(ds + " --dynamic htx --weights /nonexistent/x.safetensors --quiet");
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("/nonexistent/x.safetensors"), std::string::npos) << r.output;
+  // a file that is not a weights file: IoError from the reader, naming the problem
+  r = run_cli(ds + " --dynamic htx --weights '" + (dir / "rgb.txt").string() + "' --quiet");
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("ds3d-slam:"), std::string::npos) << r.output;
+  // usage errors: exit 2
+  EXPECT_EQ(run_cli(ds + " --weights x.safetensors").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --detect-every 0").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --min-score 2").code, 2);
+  r = run_cli(ds + " --dynamic htx+nothing");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("nothing"), std::string::npos) << r.output;
+  // a run with the fixture weights, every 2nd frame, and the composite
+  for (const std::string spec : {"htx", "htx+geometric"}) {
+    r = run_cli(ds + " --dynamic " + spec + " --weights '" + fixture_weights().string() +
+                "' --detect-every 2 --min-score 0 --quiet --no-threads --out '" +
+                (dir / "traj.txt").string() + "' --stats '" + (dir / "stats.json").string() + "'");
+    EXPECT_EQ(r.code, 0) << spec << ": " << r.output;
+    const auto stats = ds3d::test::read_json(dir / "stats.json");
+    EXPECT_EQ(stats.at("dynamic").as_string(), spec);
+    EXPECT_EQ(stats.at("frames").as_number(), 4.0);
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
