@@ -252,61 +252,6 @@ TEST(RecordedData, TumWalkingXyzMasks) {
   EXPECT_GE(kept, 0.85);
 }
 
-// Runs GeometricMotionSource + HdbscanMasker over the first frames of a recorded sequence and
-// returns the fraction of keypoints marked dynamic in the last half.
-double geometric_dynamic_fraction(const std::filesystem::path& dir, std::size_t frames,
-                                  int* objects_seen) {
-  const auto ds = ds3d::RgbdDataset::open(dir);
-  ds3d::slam::GeometricMotionSource src;
-  ds3d::slam::HdbscanMasker masker;
-  const ds3d::slam::OrbExtractor orb;
-  std::size_t total = 0;
-  std::size_t dyn = 0;
-  *objects_seen = 0;
-  for (std::size_t i = 0; i < std::min(frames, ds.size()); ++i) {
-    const auto fr = ds.frame(i);
-    FrameInput f;
-    f.index = i;
-    f.timestamp = fr.timestamp;
-    f.rgb = fr.rgb;
-    f.depth = fr.depth;
-    const auto obj = src.detect(f, ds.camera());
-    const auto feats = orb.extract(fr.rgb, fr.depth, ds.camera());
-    const auto m = masker.mask(f, ds.camera(), feats, obj);
-    if (std::getenv("DS3D_DEBUG_GEOM") != nullptr) {
-      const auto& s = src.last_stats();
-      std::cout << i << " pose " << s.pose_ok << " matches " << s.num_matches << " inl "
-                << s.num_pose_inliers << " mkp " << s.num_moving_keypoints << " mpx "
-                << s.num_moving_pixels << " new " << s.num_new_objects << " obj " << s.num_objects
-                << "\n";
-    }
-    if (i >= frames / 2) {
-      total += m.size();
-      for (const auto d : m) dyn += d;
-      *objects_seen += obj.boxes_3d.empty() ? 0 : 1;
-    }
-  }
-  return total > 0 ? static_cast<double>(dyn) / static_cast<double>(total) : 0.0;
-}
-
-// KNOWN ISSUE (disabled, run with --gtest_also_run_disabled_tests): on tum_fr1_xyz the
-// depth-warp check still flags static structure (about 3/4 of the keypoints end up dynamic over
-// frames 30-59) and on the first 60 Bonn crowd frames it confirms no object. See docs/dynamic.md.
-TEST(RecordedData, DISABLED_GeometricSourceFindsPeopleAndLeavesStaticScenes) {
-  const auto root = ds3d::test::shared_data_dir();
-  if (root.empty() || !std::filesystem::exists(root / "bonn_crowd_first300") ||
-      !std::filesystem::exists(root / "tum_fr1_xyz_first400")) {
-    GTEST_SKIP() << "no recorded data";
-  }
-  int seen_crowd = 0;
-  int seen_static = 0;
-  const double crowd = geometric_dynamic_fraction(root / "bonn_crowd_first300", 60, &seen_crowd);
-  const double still = geometric_dynamic_fraction(root / "tum_fr1_xyz_first400", 60, &seen_static);
-  std::cout << "geometric: bonn_crowd dynamic fraction " << crowd << " (frames with objects "
-            << seen_crowd << "/30); tum_fr1_xyz " << still << " (" << seen_static << "/30)\n";
-  EXPECT_GT(seen_crowd, 15);
-  EXPECT_GT(crowd, 0.05);
-  EXPECT_LT(still, 0.05);
-}
+// The recorded-data check of the geometric source lives in tests/slam/geometric_motion_test.cpp.
 
 }  // namespace
