@@ -826,9 +826,15 @@ Eigen::Matrix3f upright_rotation(const Eigen::Vector3d& up_cam) {
   const Eigen::Vector3d n = (swap * up_cam).normalized();
   DS3D_CHECK(n.z() > 0.0, "ds3d::upright_rotation: up_cam points below the horizon (got ",
              up_cam.transpose(), ")");
-  // Smallest rotation taking n to +Z (Rodrigues about n x Z).
-  const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(n, Eigen::Vector3d::UnitZ());
-  return (q.toRotationMatrix() * swap).cast<float>();
+  // Rows of the rotation (in the swapped frame): Z = n, Y = the optical axis (swapped: +Y)
+  // projected onto the floor, X = Y x Z; the same convention as the trainer
+  // (python/ds3d/htx/data.py gravity_rotation). n.z > 0 keeps the projection non-degenerate.
+  const Eigen::Vector3d fwd = (Eigen::Vector3d::UnitY() - n.y() * n).normalized();
+  Eigen::Matrix3d rows;
+  rows.row(0) = fwd.cross(n);
+  rows.row(1) = fwd;
+  rows.row(2) = n;
+  return (rows * swap).cast<float>();
 }
 
 DetectorInput make_detector_input(Eigen::Ref<const Points3f> cloud_cam,

@@ -110,9 +110,10 @@ struct DetectorInput {
 
 /// Rotation from the camera frame (x right, y down, z forward) to the upright depth frame of
 /// box3.hpp (X right, Y forward, Z up) that maps `up_cam` (the floor normal seen by the camera,
-/// e.g. PreprocessResult::ground_plane.head<3>()) to +Z: the axis swap (x, y, z) → (x, z, −y)
-/// followed by the smallest rotation taking the swapped normal to +Z (the role of SUN RGB-D's
-/// tilt matrix, htx spec §6.1 step 3). A camera-frame −y gives the plain axis swap.
+/// e.g. PreprocessResult::ground_plane.head<3>()) to +Z: the axis swap (x, y, z) → (x, z, −y),
+/// then Z = the normal, Y = the optical axis projected onto the floor, X = Y × Z (the role of
+/// SUN RGB-D's tilt matrix, htx spec §6.1 step 3; the convention the trainer uses,
+/// `ds3d.htx.data.gravity_rotation`). A camera-frame −y gives the plain axis swap.
 /// @param up_cam up direction in the camera frame, finite and non-zero (any length)
 /// @throws ds3d::InvalidArgument for a zero or non-finite vector, or one pointing down
 ///   (more than 90° from camera −y: a floor is never above the camera's horizon).

@@ -47,3 +47,18 @@ def test_detector_input_round_trip():
         ds3d.upright_rotation(np.array([0.0, 1.0, 0.0]))
     with pytest.raises(ValueError):
         ds3d.make_detector_input(cloud, R, num_points=0)
+
+
+def test_upright_rotation_matches_the_trainers_convention():
+    """Inference (C++ upright_rotation) must align clouds exactly as the training data was aligned
+    (ds3d.htx.data.gravity_rotation: Z = floor normal, Y = optical axis on the floor)."""
+    from ds3d.htx import data
+
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        # Cameras pitched and rolled by up to ~40 degrees: the floor normal seen by the camera.
+        up = np.array([0.0, -1.0, 0.0]) + rng.uniform(-0.8, 0.8, 3)
+        up[1] = -abs(up[1]) - 0.2
+        R_cpp = ds3d.upright_rotation(up)
+        R_py = data.gravity_rotation(None, up)
+        assert np.allclose(R_cpp, R_py, atol=1e-6), (up, R_cpp, R_py)
