@@ -147,11 +147,13 @@ class HtxSource final : public DynamicObjectSource {
   /// @throws ds3d::InvalidArgument only for a depth image of the wrong type or size.
   DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
   [[nodiscard]] std::string name() const override { return "htx"; }
+  /// Counts and timings of the last detect() call.
   [[nodiscard]] const HtxFrameStats& last_stats() const noexcept { return stats_; }
   /// The boxes of the last detection, in its upright frame (what the network returned, filtered).
   [[nodiscard]] const std::vector<Box3>& last_boxes() const noexcept { return boxes_; }
   /// The camera → upright rotation in use.
   [[nodiscard]] const Eigen::Matrix3f& R_up_cam() const noexcept { return R_up_cam_; }
+  /// The parameters in use (validated).
   [[nodiscard]] const HtxSourceParams& params() const noexcept { return params_; }
 
  private:
@@ -179,7 +181,9 @@ class CompositeSource final : public DynamicObjectSource {
   DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
   /// "<first>+<second>", e.g. "htx+geometric".
   [[nodiscard]] std::string name() const override;
+  /// The source that runs first (e.g. the semantic detector).
   [[nodiscard]] const DynamicObjectSource& first() const noexcept { return *first_; }
+  /// The source that runs second, on the depth left outside the first one's boxes.
   [[nodiscard]] const DynamicObjectSource& second() const noexcept { return *second_; }
 
  private:

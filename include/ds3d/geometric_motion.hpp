@@ -101,7 +101,8 @@ struct GeometricMotionStats {
 
 /// One χ²-tested keypoint of the last detect() call (for diagnostics and visualisation).
 struct TestedKeypoint {
-  float u = 0, v = 0;      ///< raw pixel of the current frame
+  float u = 0;             ///< raw pixel column of the current frame
+  float v = 0;             ///< raw pixel row of the current frame
   float z = 0;             ///< current depth [m]
   float chi2 = 0;          ///< χ² (3 dof) of its residual against the static prediction
   bool moving = false;     ///< chi2 > moving_chi2

@@ -127,6 +127,8 @@ struct DetectorInput {
 /// nothing). The drawn rows are in random order (FPS starts at row 0, the ball query takes the
 /// first rows by index, so a spatially sorted order would bias both).
 /// @param cloud_cam [n, 3] camera-frame points [m], finite; n = 0 gives an empty input
+/// @param R_up_cam camera → upright rotation (upright_rotation()); p_up = R_up_cam · p_cam
+/// @param params number of points to draw (> 0) and the seed
 /// @throws ds3d::InvalidArgument for bad params or a non-finite point (naming its row).
 /// @note O(n + num_points); deterministic for a given seed on every platform (own generator).
 [[nodiscard]] DetectorInput make_detector_input(Eigen::Ref<const Points3f> cloud_cam,
