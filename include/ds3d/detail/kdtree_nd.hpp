@@ -444,7 +444,8 @@ class KnnTreeSmall {
   // leaf_sq_dists into buf, and a bit mask of the lanes strictly below worst. For D = 3 on AVX2
   // targets one 4-lane vector per dimension step: each lane still sums its squares in dimension
   // order with separate roundings (no FMA), so buf is bitwise that of leaf_sq_dists.
-  std::uint32_t leaf_block_below(const double* q, std::uint32_t b, double worst, double* buf) const {
+  std::uint32_t leaf_block_below(const double* q, std::uint32_t b, double worst,
+                                 double* buf) const {
 #if defined(__AVX2__)
     if constexpr (kDim == 3) {
       const double* xs = soa_.data() + b;
