@@ -16,6 +16,12 @@
 #include <limits>
 #include <vector>
 
+#if defined(__AVX2__)
+#include <immintrin.h>
+#elif defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "ds3d/detail/parallel.hpp"
 
 namespace ds3d::detail {
@@ -30,6 +36,21 @@ inline double no_contract(double p) {
   asm("" : "+w"(p));
 #endif
   return p;
+}
+
+/// Gap of a coordinate to an interval [lo, hi] from a = lo - q and b = q - hi: max{a, b, 0}. At
+/// most one of a, b is positive, so this equals `a > 0 ? a : (b > 0 ? b : 0)` (up to the sign of
+/// a zero, which squaring removes), but compiles to max instructions instead of two
+/// unpredictable branches.
+inline double gap(double a, double b) {
+#if defined(__SSE2__)
+  // maxsd(x, y) = x > y ? x : y; written out, GCC 12 may still emit a branch.
+  const __m128d m = _mm_max_sd(_mm_set_sd(a), _mm_set_sd(b));
+  return _mm_cvtsd_f64(_mm_max_sd(m, _mm_setzero_pd()));
+#else
+  const double m = a > b ? a : b;
+  return m > 0.0 ? m : 0.0;
+#endif
 }
 
 /// Squared Euclidean distance summed in dimension order, no FMA: sum_j (a_j - b_j)^2.
@@ -156,6 +177,7 @@ class KnnTreeSmall {
   /// rounding), so the result is bitwise that of brute force with sq_dist_seq.
   void run_core_only(std::size_t k, int num_threads, std::vector<double>& core) const {
     const std::size_t kk = k + 1;
+    const std::size_t ks = list_stride(kk);
     const std::size_t d = dim();
     core.assign(n_, 0.0);
     std::vector<std::uint32_t> leaves;
@@ -172,12 +194,12 @@ class KnnTreeSmall {
                         const auto leaf = leaves[li];
                         const Node& ln = nodes_[leaf];
                         const std::size_t m = ln.end - ln.begin;
-                        bd.assign(m * kk, std::numeric_limits<double>::infinity());
+                        bd.assign(m * ks, std::numeric_limits<double>::infinity());
                         worst.assign(m, std::numeric_limits<double>::infinity());
                         double r2 = 0.0;
                         for (std::size_t qi = 0; qi < m; ++qi) {
                           const double* q = pts_.data() + (ln.begin + qi) * d;
-                          scan_core(q, ln, kk, bd.data() + qi * kk, worst[qi]);
+                          scan_core(q, ln, kk, bd.data() + qi * ks, worst[qi]);
                           r2 = std::max(r2, worst[qi]);
                         }
                         cand.clear();
@@ -192,7 +214,7 @@ class KnnTreeSmall {
                           for (const auto& [bb, node] : cand) {
                             if (bb >= worst[qi]) break;  // this and all later leaves are too far
                             if (box_dist2(q, node) >= worst[qi]) continue;
-                            scan_core(q, nodes_[node], kk, bd.data() + qi * kk, worst[qi]);
+                            scan_core(q, nodes_[node], kk, bd.data() + qi * ks, worst[qi]);
                           }
                           core[order_[ln.begin + qi]] = std::sqrt(worst[qi]);
                         }
@@ -267,16 +289,63 @@ class KnnTreeSmall {
     }
     if (!(hi[split] > lo[split])) return id;  // all points identical: one leaf
     const auto mid = b + (e - b) / 2;
-    std::nth_element(order_.begin() + b, order_.begin() + mid, order_.begin() + e,
-                     [&](std::uint32_t x, std::uint32_t y) {
-                       return data[static_cast<std::size_t>(x) * d + split] <
-                              data[static_cast<std::size_t>(y) * d + split];
-                     });
+    select_rank(data + split, b, mid, e);
     const auto l = build(data, b, mid);
     const auto r = build(data, mid, e);
     nodes_[static_cast<std::size_t>(id)].left = l;
     nodes_[static_cast<std::size_t>(id)].right = r;
     return id;
+  }
+
+  // Partial sort of order_[b, e) by key(i) = col[order_[i] * dim]: afterwards order_[mid] has rank
+  // mid - b, keys before it are <= and keys after it are >= (the contract of std::nth_element,
+  // which it replaces: that one's partition branches are mispredicted about half the time).
+  // Quickselect with a median-of-three pivot and branch-free three-way partition passes (< p,
+  // == p, > p), so runs of equal keys cannot stall it; short ranges end in an insertion sort.
+  // Any such split gives the same kNN results: the tree only prunes, with exact bounds.
+  void select_rank(const double* col, std::uint32_t b, std::uint32_t mid, std::uint32_t e) {
+    const std::size_t d = dim();
+    std::uint32_t* o = order_.data();
+    auto key = [&](std::uint32_t i) { return col[static_cast<std::size_t>(o[i]) * d]; };
+    // Moves the entries of [lo, hi) whose key satisfies pred to the front; returns their end.
+    auto partition = [&](std::uint32_t lo, std::uint32_t hi, auto pred) {
+      std::uint32_t j = lo;
+      for (std::uint32_t i = lo; i < hi; ++i) {
+        const std::uint32_t v = o[i];
+        const bool take = pred(col[static_cast<std::size_t>(v) * d]);
+        o[i] = o[j];
+        o[j] = v;
+        j += static_cast<std::uint32_t>(take);
+      }
+      return j;
+    };
+    std::uint32_t lo = b;
+    std::uint32_t hi = e;
+    while (hi - lo > 16) {
+      const double k0 = key(lo);
+      const double k1 = key(lo + (hi - lo) / 2);
+      const double k2 = key(hi - 1);
+      const double p = std::max(std::min(k0, k1), std::min(std::max(k0, k1), k2));
+      const std::uint32_t lt = partition(lo, hi, [p](double x) { return x < p; });
+      const std::uint32_t le = partition(lt, hi, [p](double x) { return x == p; });
+      if (mid < lt) {
+        hi = lt;
+      } else if (mid < le) {
+        return;  // every key in [lt, le) equals p
+      } else {
+        lo = le;
+      }
+    }
+    for (std::uint32_t i = lo + 1; i < hi; ++i) {  // insertion sort of the short rest
+      const std::uint32_t v = o[i];
+      const double kv = col[static_cast<std::size_t>(v) * d];
+      std::uint32_t j = i;
+      while (j > lo && key(j - 1) > kv) {
+        o[j] = o[j - 1];
+        --j;
+      }
+      o[j] = v;
+    }
   }
 
   [[nodiscard]] double box_dist2(const double* q, std::size_t node) const {
@@ -287,7 +356,7 @@ class KnnTreeSmall {
     for (std::size_t j = 0; j < d; ++j) {
       const double a = lo[j] - q[j];
       const double b = q[j] - hi[j];
-      const double g = a > 0.0 ? a : (b > 0.0 ? b : 0.0);
+      const double g = gap(a, b);
       s += no_contract(g * g);
     }
     return s;
@@ -372,20 +441,69 @@ class KnnTreeSmall {
     }
   }
 
+  // leaf_sq_dists into buf, and a bit mask of the lanes strictly below worst. For D = 3 on AVX2
+  // targets one 4-lane vector per dimension step: each lane still sums its squares in dimension
+  // order with separate roundings (no FMA), so buf is bitwise that of leaf_sq_dists.
+  std::uint32_t leaf_block_below(const double* q, std::uint32_t b, double worst,
+                                 double* buf) const {
+#if defined(__AVX2__)
+    if constexpr (kDim == 3) {
+      const double* xs = soa_.data() + b;
+      const double* ys = xs + stride_;
+      const double* zs = ys + stride_;
+      const __m256d qx = _mm256_set1_pd(q[0]);
+      const __m256d qy = _mm256_set1_pd(q[1]);
+      const __m256d qz = _mm256_set1_pd(q[2]);
+      const __m256d w = _mm256_set1_pd(worst);
+      std::uint32_t bits = 0;
+      for (std::uint32_t v = 0; v < kLeafSize; v += 4) {
+        const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(xs + v), qx);
+        const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(ys + v), qy);
+        const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(zs + v), qz);
+        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+        _mm256_storeu_pd(buf + v, d2);
+        bits |= static_cast<std::uint32_t>(_mm256_movemask_pd(_mm256_cmp_pd(d2, w, _CMP_LT_OQ)))
+                << v;
+      }
+      return bits;
+    }
+#endif
+    leaf_sq_dists(q, b, buf);
+    std::uint32_t bits = 0;
+    for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+      bits |= static_cast<std::uint32_t>(buf[t] < worst) << t;
+    }
+    return bits;
+  }
+
+#if defined(__AVX2__)
+  static __m256d no_contract256(__m256d v) {
+#if defined(__FMA__) && defined(__GNUC__)
+    asm("" : "+x"(v));  // keeps the product a separate rounding (no FMA), like no_contract
+#endif
+    return v;
+  }
+#endif
+
   // Offers the points of node nd to q's ascending list bd of the kk smallest squared distances
   // (+inf while not full); worst = bd[kk - 1]. Branch-light, as these branches are unpredictable:
   // a whole kLeafSize block of distances is compared with worst at once, and each hit is merged
   // by bd[i] = min(bd[i], max(bd[i-1], x)), a branch-free sorted insertion.
   void scan_core(const double* q, const Node& nd, std::size_t kk, double* bd, double& worst) const {
+#if defined(__AVX2__)
+    if constexpr (kDim == 3) {
+      if (kk <= 4) return scan_core_avx2<1>(q, nd, kk, bd, worst);
+      if (kk <= 8) return scan_core_avx2<2>(q, nd, kk, bd, worst);
+      if (kk <= 12) return scan_core_avx2<3>(q, nd, kk, bd, worst);
+      if (kk <= 16) return scan_core_avx2<4>(q, nd, kk, bd, worst);
+    }
+#endif
     double buf[kLeafSize];
     for (auto b = nd.begin; b < nd.end; b += kLeafSize) {
       const std::uint32_t len = std::min(kLeafSize, nd.end - b);
-      leaf_sq_dists(q, b, buf);
-      std::uint32_t bits = 0;
-      for (std::uint32_t t = 0; t < kLeafSize; ++t) {
-        bits |= static_cast<std::uint32_t>(buf[t] < worst) << t;
-      }
-      bits &= (1U << len) - 1U;
+      std::uint32_t bits = leaf_block_below(q, b, worst, buf) & ((1U << len) - 1U);
       while (bits != 0U) {
         const auto t = static_cast<std::uint32_t>(std::countr_zero(bits));
         bits &= bits - 1U;
@@ -397,6 +515,53 @@ class KnnTreeSmall {
       }
     }
   }
+
+  // Length of one query's list in run_core_only: scan_core_avx2 keeps it in whole 4-lane vectors
+  // (the slots past kk only hold further smallest values, so bd[kk - 1] is unchanged).
+  [[nodiscard]] static std::size_t list_stride(std::size_t kk) {
+#if defined(__AVX2__)
+    if (kDim == 3 && kk <= 16) return (kk + 3) & ~std::size_t{3};
+#endif
+    return kk;
+  }
+
+#if defined(__AVX2__)
+  // scan_core for D = 3 with the list held in kB 4-lane registers (4·kB >= kk slots, ascending).
+  // The merge bd[i] = min(bd[i], max(bd[i-1], x)) runs on whole registers: bd[i-1] is the list
+  // shifted up one lane (a lane permute plus the top lane of the register below; -inf below
+  // slot 0). The same values as the scalar merge, so results are unchanged.
+  template <int kB>
+  void scan_core_avx2(const double* q, const Node& nd, std::size_t kk, double* bd,
+                      double& worst) const {
+    __m256d v[kB];
+    for (int j = 0; j < kB; ++j) v[j] = _mm256_loadu_pd(bd + 4 * j);
+    const int wl = static_cast<int>((kk - 1) & 3U);  // lane of slot kk - 1 in v[(kk - 1) / 4]
+    const auto wb = static_cast<int>((kk - 1) / 4);
+    const __m256d neg_inf = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
+    double buf[kLeafSize];
+    for (auto b = nd.begin; b < nd.end; b += kLeafSize) {
+      const std::uint32_t len = std::min(kLeafSize, nd.end - b);
+      std::uint32_t bits = leaf_block_below(q, b, worst, buf) & ((1U << len) - 1U);
+      while (bits != 0U) {
+        const auto t = static_cast<std::uint32_t>(std::countr_zero(bits));
+        bits &= bits - 1U;
+        const double x = buf[t];
+        if (!(x < worst)) continue;  // cannot lower the kk-th smallest
+        const __m256d vx = _mm256_set1_pd(x);
+        for (int j = kB - 1; j >= 0; --j) {
+          const __m256d below =
+              j > 0 ? _mm256_permute4x64_pd(v[j - 1], 0xFF) : neg_inf;  // slot 4j - 1
+          const __m256d up = _mm256_blend_pd(_mm256_permute4x64_pd(v[j], 0x93), below, 0x1);
+          v[j] = _mm256_min_pd(v[j], _mm256_max_pd(up, vx));
+        }
+        alignas(32) double top[4];
+        _mm256_store_pd(top, v[wb]);
+        worst = top[wl];
+      }
+    }
+    for (int j = 0; j < kB; ++j) _mm256_storeu_pd(bd + 4 * j, v[j]);
+  }
+#endif
 
   // Squared distance between the boxes of nodes a and b, summed like sq_dist_seq: a lower bound
   // of every computed squared distance between a point of a and a point of b.
@@ -410,7 +575,7 @@ class KnnTreeSmall {
     for (std::size_t j = 0; j < d; ++j) {
       const double x = blo[j] - ahi[j];
       const double y = alo[j] - bhi[j];
-      const double g = x > 0.0 ? x : (y > 0.0 ? y : 0.0);
+      const double g = gap(x, y);
       s += no_contract(g * g);
     }
     return s;

@@ -643,7 +643,7 @@ class BoruvkaKdTree {
     for (std::size_t j = 0; j < dim_; ++j) {
       const double a = lo[j] - q[j];
       const double b = q[j] - hi[j];
-      const double d = a > 0.0 ? a : (b > 0.0 ? b : 0.0);
+      const double d = gap(a, b);
       s += no_contract(d * d);
     }
     return s;
