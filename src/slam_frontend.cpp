@@ -169,6 +169,8 @@ void FrontendConfig::validate() const {
              relocalisation_candidates, ")");
   DS3D_CHECK(reanchor_after_lost >= 0, f, ": reanchor_after_lost must be >= 0 (got ",
              reanchor_after_lost, ")");
+  DS3D_CHECK(std::isfinite(keyframe_ref_ratio) && keyframe_ref_ratio > 0 && keyframe_ref_ratio <= 1,
+             f, ": keyframe_ref_ratio must be in (0, 1] (got ", keyframe_ref_ratio, ")");
 }
 
 void PipelineOptions::validate() const {
@@ -212,6 +214,8 @@ struct SlamFrontend::Impl {
     Eigen::Isometry3d T_c_ref;
     Eigen::Isometry3d T_cw_online;
     bool tracked;
+    bool keyframe = false;
+    std::vector<std::pair<int, Observation>> matches;  // kept only for refine_frame_poses
   };
   std::vector<FrameRecord> records;
 
@@ -607,7 +611,7 @@ struct SlamFrontend::Impl {
       }
     }
     const bool need_close = tracked_close < 100 && untracked_close > 70;
-    const double ratio = n_kf < 2 ? 0.4 : 0.75;
+    const double ratio = n_kf < 2 ? 0.4 : cfg.keyframe_ref_ratio;
     const int gap = static_cast<int>(frame_counter) - last_kf_frame;
     const bool mapping_idle = !ba_job.has_value();
     const bool c1a = gap >= cfg.keyframe_max_gap;
@@ -972,6 +976,31 @@ struct SlamFrontend::Impl {
     ba_job.reset();
   }
 
+  // Re-optimises each tracked non-keyframe pose against the final map points it was matched to
+  // (pose-only, as in tracking), starting from its pose relative to its reference keyframe. A
+  // frame keeps its old pose when too few matches survive.
+  void refine_frame_poses() {
+    for (auto& r : records) {
+      if (!r.tracked || r.keyframe || r.ref_kf < 0 || r.matches.empty()) continue;
+      std::vector<Eigen::Vector3d> pw;
+      std::vector<Observation> obs;
+      for (const auto& [pid, o] : r.matches) {
+        const MapPoint& p = points[static_cast<std::size_t>(pid)];
+        if (p.bad) continue;
+        pw.push_back(p.pos);
+        obs.push_back(o);
+      }
+      if (static_cast<int>(pw.size()) < cfg.min_tracked_inliers) continue;
+      const Eigen::Isometry3d& T_rw = keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw;
+      const auto opt = optimize_pose(k, r.T_c_ref * T_rw, pw, obs, cfg.pose);
+      if (opt.num_inliers >= cfg.min_tracked_inliers && opt.T_cam_world.matrix().allFinite()) {
+        r.T_c_ref = opt.T_cam_world * T_rw.inverse();
+      }
+      r.matches.clear();
+      r.matches.shrink_to_fit();
+    }
+  }
+
   // ---- per frame -----------------------------------------------------------------------------
   TrackResult track(PreparedFrame pf) {
     const auto t0 = Clock::now();
@@ -1077,10 +1106,17 @@ struct SlamFrontend::Impl {
     }
     res.T_world_cam = T_cw.inverse();
 
-    FrameRecord rec{in.index, in.timestamp, ref_kf, Eigen::Isometry3d::Identity(), T_cw, res.tracked};
+    FrameRecord rec{in.index, in.timestamp, ref_kf, Eigen::Isometry3d::Identity(), T_cw, res.tracked, false, {}};
     if (ref_kf >= 0) rec.T_c_ref = T_cw * keyframes[static_cast<std::size_t>(ref_kf)].T_cw.inverse();
     records.push_back(rec);
 
+    if (cfg.refine_frame_poses && res.tracked && !new_kf) {
+      auto& m = records.back().matches;
+      for (std::size_t j = 0; j < f.size(); ++j) {
+        if (f.points[j] >= 0) m.emplace_back(f.points[j], observation(f, j));
+      }
+    }
+    records.back().keyframe = new_kf;
     last = std::move(f);
     last_T_cw = T_cw;
     last_tracked = ok;
@@ -1180,6 +1216,7 @@ void SlamFrontend::finish() {
     impl_->launch_ba(local, {0}, pts, false, params);
     impl_->apply_ba_if_due(true);
   }
+  if (impl_->cfg.refine_frame_poses) impl_->refine_frame_poses();
 }
 
 std::vector<FramePose> SlamFrontend::trajectory() const {

@@ -128,6 +128,12 @@ struct FrontendConfig {
   int relocalisation_candidates = 30;  ///< most recent keyframes tried when lost, >= 1
   int reanchor_after_lost = 10;   ///< consecutive lost frames after which a new map segment starts
                                   ///< at the last pose (0 = never), >= 0
+  double keyframe_ref_ratio = 0.75;  ///< a keyframe is needed when the frame tracks fewer than
+                                     ///< this fraction of the reference keyframe's well-observed
+                                     ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
+  bool refine_frame_poses = true;  ///< finish(): re-optimise every tracked non-keyframe pose
+                                   ///< against the final map with the matches it was tracked
+                                   ///< with (pose-only, as in tracking); keyframes keep theirs
   void validate() const;          ///< throws ds3d::InvalidArgument naming the bad field
 };
 
@@ -231,8 +237,10 @@ class SlamFrontend {
   TrackResult track_prepared(PreparedFrame frame);
 
   /// Waits for the mapping thread and applies any pending local BA, then (if
-  /// config.final_global_ba) a global BA over all keyframes. Call after the last frame; trajectory()
-  /// reflects it. @note O(keyframes · points) for the global BA (about a second for 400 frames).
+  /// config.final_global_ba) a global BA over all keyframes, then (if config.refine_frame_poses)
+  /// re-optimises each tracked non-keyframe pose against the final map. Call after the last frame;
+  /// trajectory() reflects it. @note O(keyframes · points) for the global BA (about a second for
+  /// 400 frames) plus one pose-only optimisation per frame (a few ms each).
   void finish();
 
   /// One pose per tracked-or-not input frame, in input order. Each frame's pose is stored relative
