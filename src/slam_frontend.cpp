@@ -169,6 +169,7 @@ void FrontendConfig::validate() const {
              relocalisation_candidates, ")");
   DS3D_CHECK(reanchor_after_lost >= 0, f, ": reanchor_after_lost must be >= 0 (got ",
              reanchor_after_lost, ")");
+  DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");
   DS3D_CHECK(std::isfinite(keyframe_ref_ratio) && keyframe_ref_ratio > 0 && keyframe_ref_ratio <= 1,
              f, ": keyframe_ref_ratio must be in (0, 1] (got ", keyframe_ref_ratio, ")");
 }
@@ -222,6 +223,7 @@ struct SlamFrontend::Impl {
   std::optional<BaJob> ba_job;
   std::size_t ba_count = 0;
   double ba_ms = 0;
+  double refine_ms = 0;  // thread CPU of finish()'s refinement
 
   Impl(FrontendConfig c, std::shared_ptr<DynamicObjectSource> s,
        std::shared_ptr<DynamicFeatureMasker> m)
@@ -996,8 +998,69 @@ struct SlamFrontend::Impl {
       if (opt.num_inliers >= cfg.min_tracked_inliers && opt.T_cam_world.matrix().allFinite()) {
         r.T_c_ref = opt.T_cam_world * T_rw.inverse();
       }
-      r.matches.clear();
-      r.matches.shrink_to_fit();
+    }
+  }
+
+  // Structure-only step over every map point with all its observations, the keyframes' and the
+  // (refined) frames', every pose fixed: a few Gauss-Newton iterations on the 3-D position with
+  // Huber weights, then a χ² test; a point keeps its position unless at least two observations
+  // pass and the solution is finite. Points are independent, so this is O(observations).
+  void refine_points_from_frames() {
+    struct Obs {
+      Eigen::Isometry3d T_cw;
+      Observation o;
+    };
+    std::vector<std::vector<Obs>> per_point(points.size());
+    for (std::size_t j = 0; j < points.size(); ++j) {
+      const MapPoint& p = points[j];
+      if (p.bad) continue;
+      for (const auto& [kf, idx] : p.obs) {
+        const Keyframe& K = keyframes[static_cast<std::size_t>(kf)];
+        per_point[j].push_back({K.T_cw, observation(K.data, static_cast<std::size_t>(idx))});
+      }
+    }
+    for (const auto& r : records) {
+      if (!r.tracked || r.keyframe || r.ref_kf < 0) continue;
+      const Eigen::Isometry3d T_cw = r.T_c_ref * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw;
+      for (const auto& [pid, o] : r.matches) {
+        if (!points[static_cast<std::size_t>(pid)].bad) per_point[static_cast<std::size_t>(pid)].push_back({T_cw, o});
+      }
+    }
+    for (std::size_t j = 0; j < points.size(); ++j) {
+      MapPoint& p = points[j];
+      const auto& obs = per_point[j];
+      if (p.bad || obs.size() < 2) continue;
+      Eigen::Vector3d x = p.pos;
+      for (int it = 0; it < 5; ++it) {
+        Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        for (const auto& ob : obs) {
+          double res[3];
+          double jp[9];
+          const int d = reprojection_residual(k, ob.T_cw, x, ob.o, res, nullptr, jp);
+          if (d == 0) continue;
+          const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> J(jp, d, 3);
+          const Eigen::Map<const Eigen::VectorXd> e(res, d);
+          const double chi2 = e.squaredNorm();
+          const double th = d == 3 ? cfg.local_ba.chi2_stereo : cfg.local_ba.chi2_mono;
+          const double w = chi2 <= th ? 1.0 : std::sqrt(th / chi2);  // Huber, δ² = χ² threshold
+          H += w * J.transpose() * J;
+          b += w * J.transpose() * e;
+        }
+        const Eigen::Vector3d dx = H.ldlt().solve(-b);
+        if (!dx.allFinite()) break;
+        x += dx;
+        if (dx.norm() < 1e-7) break;
+      }
+      int inliers = 0;
+      for (const auto& ob : obs) {
+        double res[3];
+        const int d = reprojection_residual(k, ob.T_cw, x, ob.o, res, nullptr, nullptr);
+        if (d == 0) continue;
+        const double chi2 = Eigen::Map<const Eigen::VectorXd>(res, d).squaredNorm();
+        inliers += chi2 <= (d == 3 ? cfg.local_ba.chi2_stereo : cfg.local_ba.chi2_mono) ? 1 : 0;
+      }
+      if (inliers >= 2 && x.allFinite()) p.pos = x;
     }
   }
 
@@ -1216,7 +1279,19 @@ void SlamFrontend::finish() {
     impl_->launch_ba(local, {0}, pts, false, params);
     impl_->apply_ba_if_due(true);
   }
-  if (impl_->cfg.refine_frame_poses) impl_->refine_frame_poses();
+  if (impl_->cfg.refine_frame_poses) {
+    const double c0 = thread_cpu_ms();
+    impl_->refine_frame_poses();
+    for (int round = 0; round < impl_->cfg.refine_rounds; ++round) {
+      impl_->refine_points_from_frames();
+      impl_->refine_frame_poses();
+    }
+    for (auto& r : impl_->records) {
+      r.matches.clear();
+      r.matches.shrink_to_fit();
+    }
+    impl_->refine_ms += thread_cpu_ms() - c0;
+  }
 }
 
 std::vector<FramePose> SlamFrontend::trajectory() const {
@@ -1266,6 +1341,7 @@ const FrontendConfig& SlamFrontend::config() const noexcept { return impl_->cfg;
 std::size_t SlamFrontend::num_keyframes() const noexcept { return impl_->keyframes.size(); }
 std::size_t SlamFrontend::num_local_ba() const noexcept { return impl_->ba_count; }
 double SlamFrontend::local_ba_ms() const noexcept { return impl_->ba_ms; }
+double SlamFrontend::refine_ms() const noexcept { return impl_->refine_ms; }
 const DynamicObjectSource& SlamFrontend::dynamic_source() const noexcept { return *impl_->source; }
 const DynamicFeatureMasker& SlamFrontend::dynamic_masker() const noexcept { return *impl_->masker; }
 

@@ -134,6 +134,8 @@ struct FrontendConfig {
   bool refine_frame_poses = true;  ///< finish(): re-optimise every tracked non-keyframe pose
                                    ///< against the final map with the matches it was tracked
                                    ///< with (pose-only, as in tracking); keyframes keep theirs
+  int refine_rounds = 2;  ///< after that refinement: rounds of (move every map point using all
+                          ///< frames' matches, poses fixed; refine the frames again), >= 0
   void validate() const;          ///< throws ds3d::InvalidArgument naming the bad field
 };
 
@@ -262,6 +264,9 @@ class SlamFrontend {
   [[nodiscard]] std::size_t num_local_ba() const noexcept;
   /// Total thread CPU time of the local BAs so far [ms] (see num_local_ba()).
   [[nodiscard]] double local_ba_ms() const noexcept;
+  /// Thread CPU time of the pose and point refinement in finish() [ms] (0 before finish() or
+  /// when config.refine_frame_poses is off).
+  [[nodiscard]] double refine_ms() const noexcept;
   /// The dynamic-object source in use (NoDynamicObjects when none was given).
   [[nodiscard]] const DynamicObjectSource& dynamic_source() const noexcept;
   /// The dynamic-feature masker in use (NoDynamicMasker when none was given).

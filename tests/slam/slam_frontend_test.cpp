@@ -106,8 +106,9 @@ TEST(SlamFrontend, FusionKeepsAccuracyAndDeterminism) {
   }
 }
 
-// Pose refinement against the final map (FrontendConfig::refine_frame_poses) moves only the
-// non-keyframe poses, keeps the static accuracy and the thread-independence of the output.
+// Pose refinement against the final map (FrontendConfig::refine_frame_poses, with the default
+// point-refinement rounds) moves only the non-keyframe poses, keeps the static accuracy and the
+// thread-independence of the output.
 TEST(SlamFrontend, PoseRefinementMovesOnlyNonKeyframes) {
   const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 40, 4);
   FrontendConfig cfg = synth_config();
@@ -204,6 +205,9 @@ TEST(SlamFrontend, RejectsBadConfigAndImages) {
   c.keyframe_ref_ratio = 0;
   EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
   c.keyframe_ref_ratio = 1.5;
+  EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
+  c = synth_config();
+  c.refine_rounds = -1;
   EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
   c = synth_config();
   c.camera.fx = 0;
