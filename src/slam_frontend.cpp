@@ -981,7 +981,7 @@ struct SlamFrontend::Impl {
   // Re-optimises each tracked non-keyframe pose against the final map points it was matched to
   // (pose-only, as in tracking), starting from its pose relative to its reference keyframe. A
   // frame keeps its old pose when too few matches survive.
-  void refine_frame_poses() {
+  void refine_frame_poses(const PoseOptimizerParams& params) {
     for (auto& r : records) {
       if (!r.tracked || r.keyframe || r.ref_kf < 0 || r.matches.empty()) continue;
       std::vector<Eigen::Vector3d> pw;
@@ -994,7 +994,7 @@ struct SlamFrontend::Impl {
       }
       if (static_cast<int>(pw.size()) < cfg.min_tracked_inliers) continue;
       const Eigen::Isometry3d& T_rw = keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw;
-      const auto opt = optimize_pose(k, r.T_c_ref * T_rw, pw, obs, cfg.pose);
+      const auto opt = optimize_pose(k, r.T_c_ref * T_rw, pw, obs, params);
       if (opt.num_inliers >= cfg.min_tracked_inliers && opt.T_cam_world.matrix().allFinite()) {
         r.T_c_ref = opt.T_cam_world * T_rw.inverse();
       }
@@ -1281,10 +1281,14 @@ void SlamFrontend::finish() {
   }
   if (impl_->cfg.refine_frame_poses) {
     const double c0 = thread_cpu_ms();
-    impl_->refine_frame_poses();
+    impl_->refine_frame_poses(impl_->cfg.pose);
+    // After the first pass each frame starts next to its optimum: one robust round to re-classify
+    // outliers and the final plain one are enough.
+    PoseOptimizerParams again = impl_->cfg.pose;
+    again.rounds = std::min(again.rounds, 2);
     for (int round = 0; round < impl_->cfg.refine_rounds; ++round) {
       impl_->refine_points_from_frames();
-      impl_->refine_frame_poses();
+      impl_->refine_frame_poses(again);
     }
     for (auto& r : impl_->records) {
       r.matches.clear();
