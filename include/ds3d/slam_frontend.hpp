@@ -133,7 +133,9 @@ struct FrontendConfig {
                                      ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
   bool refine_frame_poses = true;  ///< finish(): re-optimise every tracked non-keyframe pose
                                    ///< against the final map with the matches it was tracked
-                                   ///< with (pose-only, as in tracking); keyframes keep theirs
+                                   ///< with (pose-only, as in tracking); keyframes keep theirs.
+                                   ///< Keeps ≈ 50 B per match until finish() (≈ 20 kB a frame):
+                                   ///< turn off for very long sequences
   int refine_rounds = 2;  ///< after that refinement: rounds of (move every map point using all
                           ///< frames' matches, poses fixed; refine the frames again), >= 0
   void validate() const;          ///< throws ds3d::InvalidArgument naming the bad field
