@@ -169,6 +169,9 @@ void FrontendConfig::validate() const {
              relocalisation_candidates, ")");
   DS3D_CHECK(reanchor_after_lost >= 0, f, ": reanchor_after_lost must be >= 0 (got ",
              reanchor_after_lost, ")");
+  DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");
+  DS3D_CHECK(std::isfinite(keyframe_ref_ratio) && keyframe_ref_ratio > 0 && keyframe_ref_ratio <= 1,
+             f, ": keyframe_ref_ratio must be in (0, 1] (got ", keyframe_ref_ratio, ")");
 }
 
 void PipelineOptions::validate() const {
@@ -212,12 +215,15 @@ struct SlamFrontend::Impl {
     Eigen::Isometry3d T_c_ref;
     Eigen::Isometry3d T_cw_online;
     bool tracked;
+    bool keyframe = false;
+    std::vector<std::pair<int, Observation>> matches;  // kept only for refine_frame_poses
   };
   std::vector<FrameRecord> records;
 
   std::optional<BaJob> ba_job;
   std::size_t ba_count = 0;
   double ba_ms = 0;
+  double refine_ms = 0;  // thread CPU of finish()'s refinement
 
   Impl(FrontendConfig c, std::shared_ptr<DynamicObjectSource> s,
        std::shared_ptr<DynamicFeatureMasker> m)
@@ -607,7 +613,7 @@ struct SlamFrontend::Impl {
       }
     }
     const bool need_close = tracked_close < 100 && untracked_close > 70;
-    const double ratio = n_kf < 2 ? 0.4 : 0.75;
+    const double ratio = n_kf < 2 ? 0.4 : cfg.keyframe_ref_ratio;
     const int gap = static_cast<int>(frame_counter) - last_kf_frame;
     const bool mapping_idle = !ba_job.has_value();
     const bool c1a = gap >= cfg.keyframe_max_gap;
@@ -972,6 +978,92 @@ struct SlamFrontend::Impl {
     ba_job.reset();
   }
 
+  // Re-optimises each tracked non-keyframe pose against the final map points it was matched to
+  // (pose-only, as in tracking), starting from its pose relative to its reference keyframe. A
+  // frame keeps its old pose when too few matches survive.
+  void refine_frame_poses(const PoseOptimizerParams& params) {
+    for (auto& r : records) {
+      if (!r.tracked || r.keyframe || r.ref_kf < 0 || r.matches.empty()) continue;
+      std::vector<Eigen::Vector3d> pw;
+      std::vector<Observation> obs;
+      for (const auto& [pid, o] : r.matches) {
+        const MapPoint& p = points[static_cast<std::size_t>(pid)];
+        if (p.bad) continue;
+        pw.push_back(p.pos);
+        obs.push_back(o);
+      }
+      if (static_cast<int>(pw.size()) < cfg.min_tracked_inliers) continue;
+      const Eigen::Isometry3d& T_rw = keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw;
+      const auto opt = optimize_pose(k, r.T_c_ref * T_rw, pw, obs, params);
+      if (opt.num_inliers >= cfg.min_tracked_inliers && opt.T_cam_world.matrix().allFinite()) {
+        r.T_c_ref = opt.T_cam_world * T_rw.inverse();
+      }
+    }
+  }
+
+  // Structure-only step over every map point with all its observations, the keyframes' and the
+  // (refined) frames', every pose fixed: a few Gauss-Newton iterations on the 3-D position with
+  // Huber weights, then a χ² test; a point keeps its position unless at least two observations
+  // pass and the solution is finite. Points are independent, so this is O(observations).
+  void refine_points_from_frames() {
+    struct Obs {
+      Eigen::Isometry3d T_cw;
+      Observation o;
+    };
+    std::vector<std::vector<Obs>> per_point(points.size());
+    for (std::size_t j = 0; j < points.size(); ++j) {
+      const MapPoint& p = points[j];
+      if (p.bad) continue;
+      for (const auto& [kf, idx] : p.obs) {
+        const Keyframe& K = keyframes[static_cast<std::size_t>(kf)];
+        per_point[j].push_back({K.T_cw, observation(K.data, static_cast<std::size_t>(idx))});
+      }
+    }
+    for (const auto& r : records) {
+      if (!r.tracked || r.keyframe || r.ref_kf < 0) continue;
+      const Eigen::Isometry3d T_cw = r.T_c_ref * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw;
+      for (const auto& [pid, o] : r.matches) {
+        if (!points[static_cast<std::size_t>(pid)].bad) per_point[static_cast<std::size_t>(pid)].push_back({T_cw, o});
+      }
+    }
+    for (std::size_t j = 0; j < points.size(); ++j) {
+      MapPoint& p = points[j];
+      const auto& obs = per_point[j];
+      if (p.bad || obs.size() < 2) continue;
+      Eigen::Vector3d x = p.pos;
+      for (int it = 0; it < 5; ++it) {
+        Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d b = Eigen::Vector3d::Zero();
+        for (const auto& ob : obs) {
+          double res[3];
+          double jp[9];
+          const int d = reprojection_residual(k, ob.T_cw, x, ob.o, res, nullptr, jp);
+          if (d == 0) continue;
+          const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> J(jp, d, 3);
+          const Eigen::Map<const Eigen::VectorXd> e(res, d);
+          const double chi2 = e.squaredNorm();
+          const double th = d == 3 ? cfg.local_ba.chi2_stereo : cfg.local_ba.chi2_mono;
+          const double w = chi2 <= th ? 1.0 : std::sqrt(th / chi2);  // Huber, δ² = χ² threshold
+          H += w * J.transpose() * J;
+          b += w * J.transpose() * e;
+        }
+        const Eigen::Vector3d dx = H.ldlt().solve(-b);
+        if (!dx.allFinite()) break;
+        x += dx;
+        if (dx.norm() < 1e-7) break;
+      }
+      int inliers = 0;
+      for (const auto& ob : obs) {
+        double res[3];
+        const int d = reprojection_residual(k, ob.T_cw, x, ob.o, res, nullptr, nullptr);
+        if (d == 0) continue;
+        const double chi2 = Eigen::Map<const Eigen::VectorXd>(res, d).squaredNorm();
+        inliers += chi2 <= (d == 3 ? cfg.local_ba.chi2_stereo : cfg.local_ba.chi2_mono) ? 1 : 0;
+      }
+      if (inliers >= 2 && x.allFinite()) p.pos = x;
+    }
+  }
+
   // ---- per frame -----------------------------------------------------------------------------
   TrackResult track(PreparedFrame pf) {
     const auto t0 = Clock::now();
@@ -1077,10 +1169,17 @@ struct SlamFrontend::Impl {
     }
     res.T_world_cam = T_cw.inverse();
 
-    FrameRecord rec{in.index, in.timestamp, ref_kf, Eigen::Isometry3d::Identity(), T_cw, res.tracked};
+    FrameRecord rec{in.index, in.timestamp, ref_kf, Eigen::Isometry3d::Identity(), T_cw, res.tracked, false, {}};
     if (ref_kf >= 0) rec.T_c_ref = T_cw * keyframes[static_cast<std::size_t>(ref_kf)].T_cw.inverse();
     records.push_back(rec);
 
+    if (cfg.refine_frame_poses && res.tracked && !new_kf) {
+      auto& m = records.back().matches;
+      for (std::size_t j = 0; j < f.size(); ++j) {
+        if (f.points[j] >= 0) m.emplace_back(f.points[j], observation(f, j));
+      }
+    }
+    records.back().keyframe = new_kf;
     last = std::move(f);
     last_T_cw = T_cw;
     last_tracked = ok;
@@ -1180,6 +1279,23 @@ void SlamFrontend::finish() {
     impl_->launch_ba(local, {0}, pts, false, params);
     impl_->apply_ba_if_due(true);
   }
+  if (impl_->cfg.refine_frame_poses) {
+    const double c0 = thread_cpu_ms();
+    impl_->refine_frame_poses(impl_->cfg.pose);
+    // After the first pass each frame starts next to its optimum: one robust round to re-classify
+    // outliers and the final plain one are enough.
+    PoseOptimizerParams again = impl_->cfg.pose;
+    again.rounds = std::min(again.rounds, 2);
+    for (int round = 0; round < impl_->cfg.refine_rounds; ++round) {
+      impl_->refine_points_from_frames();
+      impl_->refine_frame_poses(again);
+    }
+    for (auto& r : impl_->records) {
+      r.matches.clear();
+      r.matches.shrink_to_fit();
+    }
+    impl_->refine_ms += thread_cpu_ms() - c0;
+  }
 }
 
 std::vector<FramePose> SlamFrontend::trajectory() const {
@@ -1229,6 +1345,7 @@ const FrontendConfig& SlamFrontend::config() const noexcept { return impl_->cfg;
 std::size_t SlamFrontend::num_keyframes() const noexcept { return impl_->keyframes.size(); }
 std::size_t SlamFrontend::num_local_ba() const noexcept { return impl_->ba_count; }
 double SlamFrontend::local_ba_ms() const noexcept { return impl_->ba_ms; }
+double SlamFrontend::refine_ms() const noexcept { return impl_->refine_ms; }
 const DynamicObjectSource& SlamFrontend::dynamic_source() const noexcept { return *impl_->source; }
 const DynamicFeatureMasker& SlamFrontend::dynamic_masker() const noexcept { return *impl_->masker; }
 

@@ -75,6 +75,7 @@ void BM_TrackSequence(benchmark::State& state) {
     cfg.camera = ds3d::synth::SynthOptions{}.camera;
     cfg.mapping_thread = threaded;
     cfg.final_global_ba = false;
+    cfg.refine_frame_poses = false;  // per-frame work only: BM_Finish measures finish()
     ds3d::slam::SlamFrontend slam(cfg);
     std::size_t i = 0;
     const auto next = [&]() -> std::optional<ds3d::slam::FrameInput> {
@@ -94,5 +95,25 @@ void BM_TrackSequence(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(frames().size()));
 }
 BENCHMARK(BM_TrackSequence)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+
+// finish() after 30 tracked frames (tracking itself is not timed): arg 0 = global BA only,
+// 1 = + per-frame pose refinement, 2 = + refinement with the default 2 point rounds.
+void BM_Finish(benchmark::State& state) {
+  cv::setNumThreads(1);
+  for (auto _ : state) {
+    state.PauseTiming();
+    ds3d::slam::FrontendConfig cfg;
+    cfg.camera = ds3d::synth::SynthOptions{}.camera;
+    cfg.mapping_thread = false;
+    cfg.refine_frame_poses = state.range(0) > 0;
+    cfg.refine_rounds = state.range(0) > 1 ? 2 : 0;
+    ds3d::slam::SlamFrontend slam(cfg);
+    for (const auto& f : frames()) (void)slam.track(f.rgb, f.depth, f.timestamp);
+    state.ResumeTiming();
+    slam.finish();
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(frames().size()));
+}
+BENCHMARK(BM_Finish)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Iterations(3);
 
 }  // namespace

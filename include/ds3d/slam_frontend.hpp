@@ -128,6 +128,16 @@ struct FrontendConfig {
   int relocalisation_candidates = 30;  ///< most recent keyframes tried when lost, >= 1
   int reanchor_after_lost = 10;   ///< consecutive lost frames after which a new map segment starts
                                   ///< at the last pose (0 = never), >= 0
+  double keyframe_ref_ratio = 0.75;  ///< a keyframe is needed when the frame tracks fewer than
+                                     ///< this fraction of the reference keyframe's well-observed
+                                     ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
+  bool refine_frame_poses = true;  ///< finish(): re-optimise every tracked non-keyframe pose
+                                   ///< against the final map with the matches it was tracked
+                                   ///< with (pose-only, as in tracking); keyframes keep theirs.
+                                   ///< Keeps ≈ 50 B per match until finish() (≈ 20 kB a frame):
+                                   ///< turn off for very long sequences
+  int refine_rounds = 2;  ///< after that refinement: rounds of (move every map point using all
+                          ///< frames' matches, poses fixed; refine the frames again), >= 0
   void validate() const;          ///< throws ds3d::InvalidArgument naming the bad field
 };
 
@@ -231,8 +241,10 @@ class SlamFrontend {
   TrackResult track_prepared(PreparedFrame frame);
 
   /// Waits for the mapping thread and applies any pending local BA, then (if
-  /// config.final_global_ba) a global BA over all keyframes. Call after the last frame; trajectory()
-  /// reflects it. @note O(keyframes · points) for the global BA (about a second for 400 frames).
+  /// config.final_global_ba) a global BA over all keyframes, then (if config.refine_frame_poses)
+  /// re-optimises each tracked non-keyframe pose against the final map. Call after the last frame;
+  /// trajectory() reflects it. @note O(keyframes · points) for the global BA (about a second for
+  /// 400 frames) plus one pose-only optimisation per frame (a few ms each).
   void finish();
 
   /// One pose per tracked-or-not input frame, in input order. Each frame's pose is stored relative
@@ -254,6 +266,9 @@ class SlamFrontend {
   [[nodiscard]] std::size_t num_local_ba() const noexcept;
   /// Total thread CPU time of the local BAs so far [ms] (see num_local_ba()).
   [[nodiscard]] double local_ba_ms() const noexcept;
+  /// Thread CPU time of the pose and point refinement in finish() [ms] (0 before finish() or
+  /// when config.refine_frame_poses is off).
+  [[nodiscard]] double refine_ms() const noexcept;
   /// The dynamic-object source in use (NoDynamicObjects when none was given).
   [[nodiscard]] const DynamicObjectSource& dynamic_source() const noexcept;
   /// The dynamic-feature masker in use (NoDynamicMasker when none was given).

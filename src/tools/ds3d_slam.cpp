@@ -43,7 +43,8 @@ constexpr const char* kUsage =
     "                 [--dynamic none|geometric|htx|htx+geometric|file:PATH] [--weights PATH]\n"
     "                 [--detect-every K] [--min-score S] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
-    "                 [--fusion] [--local-window N] [--bf BF] [--cv-threads N] [--quiet]\n"
+    "                 [--fusion] [--local-window N] [--bf BF] [--kf-ratio R]\n"
+    "                 [--no-refine] [--refine-rounds N] [--cv-threads N] [--quiet]\n"
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
     "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present.\n"
     "--dynamic: where boxes of moving objects come from: none (keep every keypoint), geometric\n"
@@ -60,6 +61,11 @@ constexpr const char* kUsage =
     "  default: it hurts on dynamic scenes without a dynamic filter, see docs/slam.md).\n"
     "--local-window: keyframes optimised by local BA (default 10).\n"
     "--bf: virtual stereo baseline × fx for the depth residual [px·m] (default 40, ORB-SLAM2's).\n"
+    "--kf-ratio: keyframe when fewer than this fraction of the reference keyframe's points are\n"
+    "  tracked (default 0.75, ORB-SLAM2's RGB-D value), in (0, 1].\n"
+    "--no-refine: keep the tracked poses (by default, after the final global BA each non-keyframe\n"
+    "  pose is re-optimised against the final map). --refine-rounds N: then N rounds of (update\n"
+    "  every map point from all frames' matches; re-optimise the frames) (default 2).\n"
     "--cv-threads: OpenCV's own worker threads (default 1: the pipeline stages are the threads).\n";
 
 struct Args {
@@ -80,6 +86,9 @@ struct Args {
   bool fusion = false;
   int local_window = 0;  // 0 = the FrontendConfig default
   double bf = 0;         // 0 = the FrontendConfig default
+  double kf_ratio = 0;   // 0 = the FrontendConfig default
+  bool refine = true;
+  int refine_rounds = -1;  // < 0 = the FrontendConfig default
   int cv_threads = 1;
   bool quiet = false;
 };
@@ -149,6 +158,17 @@ Args parse(int argc, char** argv) {
       a.fusion = true;
     } else if (s == "--bf") {
       a.bf = std::stod(value());
+    } else if (s == "--kf-ratio") {
+      const std::string v = value();
+      char* end = nullptr;
+      a.kf_ratio = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(a.kf_ratio > 0 && a.kf_ratio <= 1)) {
+        usage_error("--kf-ratio expects a number in (0, 1] (got '" + v + "')");
+      }
+    } else if (s == "--refine-rounds") {
+      a.refine_rounds = static_cast<int>(parse_int(s, value(), 0));
+    } else if (s == "--no-refine") {
+      a.refine = false;
     } else if (s == "--local-window") {
       a.local_window = static_cast<int>(parse_int(s, value(), 2));
     } else if (s == "--cv-threads") {
@@ -275,6 +295,9 @@ int run(const Args& a) {
   cfg.fuse_neighbors = a.fusion;
   if (a.local_window > 0) cfg.local_window = a.local_window;
   if (a.bf > 0) cfg.bf = a.bf;
+  if (a.kf_ratio > 0) cfg.keyframe_ref_ratio = a.kf_ratio;
+  cfg.refine_frame_poses = a.refine;
+  if (a.refine_rounds >= 0) cfg.refine_rounds = a.refine_rounds;
   cfg.mapping_thread = a.threads;
   std::shared_ptr<RecordingMasker> masker;
   if (a.dynamic != "none") {
@@ -373,7 +396,8 @@ int run(const Args& a) {
        << "  \"local_ba\": {\"count\": " << slam.num_local_ba() << ", \"total_cpu_ms\": "
        << json_number(slam.local_ba_ms()) << ", \"mean_cpu_ms\": "
        << json_number(slam.num_local_ba() > 0 ? slam.local_ba_ms() / static_cast<double>(slam.num_local_ba()) : 0.0)
-       << "},\n  \"stages\": {\n";
+       << "},\n  \"refine_cpu_ms\": " << json_number(slam.refine_ms())
+       << ",\n  \"stages\": {\n";
     stage("extract", ex, true);
     stage("detect", de, true);
     stage("filter", fi, true);

@@ -106,6 +106,41 @@ TEST(SlamFrontend, FusionKeepsAccuracyAndDeterminism) {
   }
 }
 
+// Pose refinement against the final map (FrontendConfig::refine_frame_poses, with the default
+// point-refinement rounds) moves only the non-keyframe poses, keeps the static accuracy and the
+// thread-independence of the output.
+TEST(SlamFrontend, PoseRefinementMovesOnlyNonKeyframes) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 40, 4);
+  FrontendConfig cfg = synth_config();
+  cfg.refine_frame_poses = false;
+  const SlamRun plain = run(frames, cfg, true);
+  cfg.refine_frame_poses = true;
+  const SlamRun refined = run(frames, cfg, true);
+  cfg.mapping_thread = false;
+  const SlamRun refined_sync = run(frames, cfg, false);
+  ASSERT_EQ(plain.trajectory.size(), refined.trajectory.size());
+  ASSERT_EQ(refined.trajectory.size(), refined_sync.trajectory.size());
+  int moved = 0;
+  int keyframes = 0;
+  for (std::size_t i = 0; i < plain.trajectory.size(); ++i) {
+    const bool same = plain.trajectory[i].T_world_cam.matrix() == refined.trajectory[i].T_world_cam.matrix();
+    if (plain.results[i].keyframe) {
+      ++keyframes;
+      EXPECT_TRUE(same) << "keyframe " << i << " moved";
+    } else {
+      moved += same ? 0 : 1;
+    }
+    EXPECT_TRUE(refined.trajectory[i].T_world_cam.matrix().allFinite());
+    EXPECT_TRUE(refined.trajectory[i].T_world_cam.matrix() == refined_sync.trajectory[i].T_world_cam.matrix())
+        << "frame " << i;
+  }
+  EXPECT_GE(keyframes, 2);
+  EXPECT_GT(moved, static_cast<int>(plain.trajectory.size()) / 2);
+  EXPECT_LE(refined.ate, 0.005);
+  // Refinement against a better map must not make a static scene noticeably worse.
+  EXPECT_LE(refined.ate, plain.ate * 1.1 + 1e-4);
+}
+
 TEST(SlamFrontend, ThreadedPipelineGivesIdenticalPoses) {
   const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 30, 3);
   const SlamRun a = run(frames, synth_config(), true);
@@ -165,6 +200,14 @@ TEST(SlamFrontend, RejectsBadConfigAndImages) {
   EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
   c = synth_config();
   c.local_window = 1;
+  EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
+  c = synth_config();
+  c.keyframe_ref_ratio = 0;
+  EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
+  c.keyframe_ref_ratio = 1.5;
+  EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
+  c = synth_config();
+  c.refine_rounds = -1;
   EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
   c = synth_config();
   c.camera.fx = 0;
