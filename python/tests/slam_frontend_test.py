@@ -53,3 +53,24 @@ def test_bad_input_raises_value_error():
         ds3d.run_slam(".", max_frames=-1)
     with pytest.raises(RuntimeError):
         ds3d.run_slam("/nonexistent/dataset")
+
+
+def test_refinement_options_are_exposed_and_validated():
+    cfg = ds3d.SlamConfig()
+    assert cfg.refine_frame_poses is True and cfg.refine_rounds == 2
+    assert cfg.fuse_neighbors is False and 0.0 < cfg.keyframe_ref_ratio < 1.0
+    cfg.refine_rounds = -1
+    with pytest.raises(ValueError, match="refine_rounds"):
+        cfg.validate()
+    # Without refinement the finished trajectory equals the online poses.
+    cfg = ds3d.SlamConfig()
+    cfg.refine_frame_poses = False
+    cfg.refine_rounds = 0
+    cfg.final_global_ba = False
+    slam = ds3d.Slam(cfg)
+    rgb = textured(2)
+    depth = np.full(rgb.shape[:2], 10000, np.uint16)
+    online = [slam.track(rgb, depth, 0.1 * i) for i in range(4)]
+    slam.finish()
+    traj = slam.trajectory()
+    assert np.allclose(traj[:, 1:4], [p[:3, 3] for p in online], atol=1e-9)

@@ -136,6 +136,10 @@ void bind_slam_frontend(py::module_& m) {
       .def_readwrite("ba_apply_lag", &FrontendConfig::ba_apply_lag)
       .def_readwrite("relocalisation_candidates", &FrontendConfig::relocalisation_candidates)
       .def_readwrite("reanchor_after_lost", &FrontendConfig::reanchor_after_lost)
+      .def_readwrite("fuse_neighbors", &FrontendConfig::fuse_neighbors)
+      .def_readwrite("keyframe_ref_ratio", &FrontendConfig::keyframe_ref_ratio)
+      .def_readwrite("refine_frame_poses", &FrontendConfig::refine_frame_poses)
+      .def_readwrite("refine_rounds", &FrontendConfig::refine_rounds)
       .def("validate", &FrontendConfig::validate, "Raises ValueError naming the bad field.");
 
   py::class_<PySlam>(m, "Slam",
