@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 
 #include "ds3d/cloud.hpp"
+#include "ds3d/detail/voxel_key.hpp"
 #include "ds3d/errors.hpp"
 
 namespace ds3d {
@@ -63,17 +64,17 @@ struct VoxelGridResult {
 /// Scratch buffers of voxel_grid(). Pass the same workspace to repeated calls (one per thread)
 /// and the fast path allocates nothing but the outputs. Contents are unspecified between calls.
 struct VoxelGridWorkspace {
-  std::unique_ptr<std::uint64_t[]> words;  ///< sparse box: (key << 32 | index) pairs
-  std::unique_ptr<std::uint64_t[]> tmp;    ///< radix-sort ping-pong buffer (not zero-filled)
-  std::size_t capacity = 0;                ///< words of each of words / tmp
-  std::vector<std::uint32_t> hist;         ///< radix histograms
-  std::vector<std::size_t> runs;           ///< per-chunk bounds, output offsets, dropped counts
-  std::unique_ptr<std::uint32_t[]> cell;   ///< dense box: key, then output row, of each point
-  std::size_t cell_capacity = 0;           ///< entries of cell
-  std::vector<std::uint64_t> occupied;     ///< dense box: occupancy bitmap of the key box
-  std::vector<std::uint32_t> rank;         ///< dense box: set bits before each bitmap word
-  std::vector<double> acc;                 ///< dense box: per-voxel sums, then means
-  std::vector<std::uint64_t> best;         ///< dense box: bits of each voxel's best distance
+  detail::Scratch<std::uint64_t> words;  ///< sparse box: (key << 32 | index) pairs
+  detail::Scratch<std::uint64_t> tmp;    ///< radix-sort ping-pong buffer (not zero-filled)
+  std::size_t capacity = 0;              ///< words of each of words / tmp
+  std::vector<std::uint32_t> hist;       ///< radix histograms
+  std::vector<std::size_t> runs;         ///< per-chunk bounds, output offsets, dropped counts
+  detail::Scratch<std::uint32_t> cell;   ///< dense box: key, then output row, of each point
+  std::size_t cell_capacity = 0;         ///< entries of cell
+  std::vector<std::uint64_t> occupied;   ///< dense box: occupancy bitmap of the key box
+  std::vector<std::uint32_t> rank;       ///< dense box: set bits before each bitmap word
+  std::vector<double> acc;               ///< dense box: per-voxel sums, then means
+  std::vector<std::uint64_t> best;       ///< dense box: bits of each voxel's best distance
 };
 
 /// Voxel-grid down-sampling: one centroid per occupied voxel of an origin-anchored grid.

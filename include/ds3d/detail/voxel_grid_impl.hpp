@@ -38,7 +38,6 @@ namespace detail {
   return dx * dx + dy * dy + dz * dz;
 }
 
-
 /// Centroids from a general VoxelSort (fallback for keys beyond ±2^20 or > 32 key bits).
 template <PointCloud C>
 VoxelGridResult voxel_grid_from_sort(const C& cloud, const VoxelGridParams& params, int threads,
@@ -138,7 +137,6 @@ inline std::uint64_t* radix_sort_pairs(std::uint64_t* a, std::uint64_t* tmp, std
   return a;
 }
 
-
 /// x / d for x < 2^32 by a double reciprocal, corrected to the exact quotient.
 struct FastDiv {
   std::uint64_t d;
@@ -160,13 +158,13 @@ struct FastDiv {
 /// members are then summed in input order straight into their row (no sort), and a second pass
 /// picks the representatives. The sums are those of the sorted path bit for bit (same order).
 template <PointCloud C>
-void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads,
-                                 const KeyGrid& g, const std::array<std::uint64_t, 3>& range,
-                                 std::uint64_t cells, VoxelGridWorkspace& ws, VoxelGridResult& r) {
+void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads, const KeyGrid& g,
+                      const std::array<std::uint64_t, 3>& range, std::uint64_t cells,
+                      VoxelGridWorkspace& ws, VoxelGridResult& r) {
   constexpr const char* kFn = "ds3d::voxel_grid";
   const std::size_t n = cloud::size(cloud);
   if (ws.cell_capacity < n) {
-    ws.cell = std::make_unique_for_overwrite<std::uint32_t[]>(n);
+    ws.cell = make_scratch<std::uint32_t>(n);
     ws.cell_capacity = n;
   }
   std::uint32_t* cell = ws.cell.get();
@@ -297,7 +295,8 @@ void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads
   for (std::size_t w = 0; w < words; ++w) {
     for (std::uint64_t bits = occ[w]; bits != 0; bits &= bits - 1, ++v) {
       if (cnt[v] < params.min_points) continue;
-      const std::uint64_t k = 64 * std::uint64_t{w} + static_cast<std::uint64_t>(std::countr_zero(bits));
+      const std::uint64_t k =
+          64 * std::uint64_t{w} + static_cast<std::uint64_t>(std::countr_zero(bits));
       const std::uint64_t kx = div_yz(k);
       const std::uint64_t rest = k - kx * div_yz.d;
       const std::uint64_t ky = div_z(rest);
@@ -317,19 +316,18 @@ void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads
   r.representative.resize(rows);
 }
 
-
 /// Sparse-box path of voxel_grid: (key << 32 | index) pairs, bit-packed keys of `bits` <= 32
 /// bits (kNoKey, all ones, sorts last), stable LSD radix sort, then one row per run of equal keys.
 template <PointCloud C>
-void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int threads,
-                                  const KeyGrid& g, const std::array<int, 3>& b, int bits,
-                                  VoxelGridWorkspace& ws, VoxelGridResult& r) {
+void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int threads, const KeyGrid& g,
+                       const std::array<int, 3>& b, int bits, VoxelGridWorkspace& ws,
+                       VoxelGridResult& r) {
   constexpr const char* kFn = "ds3d::voxel_grid";
   const std::size_t n = cloud::size(cloud);
   const std::size_t m = n - r.num_non_finite;
   if (ws.capacity < n) {  // default-initialised: no zero-fill of buffers written before read
-    ws.words = std::make_unique_for_overwrite<std::uint64_t[]>(n);
-    ws.tmp = std::make_unique_for_overwrite<std::uint64_t[]>(n);
+    ws.words = make_scratch<std::uint64_t>(n);
+    ws.tmp = make_scratch<std::uint64_t>(n);
     ws.capacity = n;
   }
   const int passes = (bits + 10) / 11;
@@ -535,7 +533,8 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
     // Dense box (typical for depth frames at a few cm): no sort at all, an occupancy bitmap gives
     // each voxel its row. A box of up to 16 cells per point costs at most 2 bytes per point.
     const std::uint64_t cells = range[0] * range[1] * range[2];  // < 2^66 / 2^3: see fits
-    if (b[0] + b[1] + b[2] <= 40 && cells <= std::max<std::uint64_t>(16 * std::uint64_t{n}, 1U << 16) &&
+    if (b[0] + b[1] + b[2] <= 40 &&
+        cells <= std::max<std::uint64_t>(16 * std::uint64_t{n}, 1U << 16) &&
         cells < detail::kNoKey) {
       g.mul = {static_cast<std::uint32_t>(range[1] * range[2]),
                static_cast<std::uint32_t>(range[2]), 1U};
