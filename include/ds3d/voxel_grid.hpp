@@ -84,13 +84,16 @@ struct VoxelGridWorkspace {
 /// @throws ds3d::InvalidArgument on bad params, on a voxel index whose magnitude reaches 2^62
 ///         (names the coordinate and the value), on a non-finite point under kThrow, or on
 ///         clouds of 2^32 - 1 points or more.
-/// @note O(n) time (radix sort on packed keys; a comparison sort when the occupied key ranges
-///       need more than 64 bits), O(n) extra memory. Identical output for every num_threads.
+/// @note O(n) time, O(n) extra memory: an occupancy bitmap over the key box when it has at most
+///       16 cells per point (no sort), else a radix sort on packed keys (a comparison sort when
+///       the occupied key ranges need more than 64 bits). Identical output for every num_threads
+///       and every path (each voxel is summed in input order).
 template <PointCloud C>
 [[nodiscard]] VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params = {});
 
-/// As above, with caller-owned scratch buffers (no per-call allocation beyond the outputs on
-/// the fast path: every axis within ±2^20 voxels and the occupied key box within 2^32 cells).
+/// As above, with caller-owned scratch buffers (no per-call allocation beyond the outputs once
+/// the buffers have grown, on the fast paths: every key within ±2^21 and either at most 16 box
+/// cells per point or a box of at most 2^32 cells).
 template <PointCloud C>
 [[nodiscard]] VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params,
                                          VoxelGridWorkspace& workspace);

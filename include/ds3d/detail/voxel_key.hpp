@@ -3,6 +3,8 @@
 #pragma once
 // Integer voxel keys and a key-sorted ordering of a cloud's finite points, shared by voxel_grid
 // (one centroid per voxel) and radius_outlier (a neighbour grid with cell size R). Not API.
+// voxel_grid's own passes (key box, 32-bit box-relative keys) are voxel_box, grid_keys_block
+// and for_each_key_block below; sort_by_voxel is the general path and radius_outlier's.
 //
 // A point's voxel is (floor(x/dx), floor(y/dy), floor(z/dz)) with a correctly rounded division
 // in double (the fixture spec). The hot loop multiplies by 1/dx instead and falls back to the
