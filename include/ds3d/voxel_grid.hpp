@@ -85,9 +85,9 @@ struct VoxelGridWorkspace {
 ///         (names the coordinate and the value), on a non-finite point under kThrow, or on
 ///         clouds of 2^32 - 1 points or more.
 /// @note O(n) time, O(n) extra memory: an occupancy bitmap over the key box when it has at most
-///       16 cells per point (no sort), else a radix sort on packed keys (a comparison sort when
-///       the occupied key ranges need more than 64 bits). Identical output for every num_threads
-///       and every path (each voxel is summed in input order).
+///       16 cells per point or 2^16 cells (no sort), else a radix sort on packed keys (a comparison
+///       sort when the occupied key ranges need more than 64 bits). Identical output for every
+///       num_threads and every path (each voxel is summed in input order).
 template <PointCloud C>
 [[nodiscard]] VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params = {});
 
