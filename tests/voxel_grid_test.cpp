@@ -272,6 +272,29 @@ TEST(VoxelGrid, EveryKeyWidthPathMatchesBruteForce) {
   }
 }
 
+TEST(VoxelGrid, DenseAndSparseBoxesMatchBruteForce) {
+  // The same cloud at a coarse leaf (a key box of <= 16 cells per point: occupancy bitmap, no
+  // sort) and a fine one (pair radix sort), with non-finite points, on 1 and 3 threads.
+  ds3d::test::Rng rng(17);
+  Points3f p = ds3d::test::uniform_box(6000, {-0.7F, 0.2F, 1.0F}, {0.9F, 1.1F, 2.5F}, rng);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (const Eigen::Index i : {0, 7, 255, 256, 3001, 5999}) p(i, i % 3) = nan;
+  p.row(100) << std::numeric_limits<float>::infinity(), 0, 0;
+  for (Eigen::Index i = 4000; i < 4100; ++i) p.row(i) = p.row(i - 900);  // exact duplicates
+  for (const double leaf : {0.2, 0.05, 0.011}) {
+    const std::size_t cells =
+        static_cast<std::size_t>((1.6 / leaf + 2) * (0.9 / leaf + 2) * (1.5 / leaf + 2));
+    const std::string what = "leaf " + std::to_string(leaf) + " (" + std::to_string(cells) +
+                             " cells, " + (cells <= 16 * 6000 ? "dense" : "sparse") + ")";
+    const VoxelGridResult ref = brute_force_voxels(p, leaf);
+    EXPECT_EQ(ref.num_non_finite, 7U);
+    for (const int t : {1, 3}) {
+      expect_same(ds3d::voxel_grid(p, {.leaf_size = leaf, .num_threads = t}), ref,
+                  what + " threads " + std::to_string(t));
+    }
+  }
+}
+
 TEST(VoxelGrid, MinPointsDropsSmallVoxels) {
   ds3d::test::Rng rng(2);
   const Points3f p = ds3d::test::uniform_box(3000, {0, 0, 0}, {1, 1, 1}, rng);

@@ -26,11 +26,7 @@
 #include <pcl/sample_consensus/model_types.h>
 #include <pcl/segmentation/sac_segmentation.h>
 
-#include "ds3d/radius_outlier.hpp"
-#include "ds3d/ransac_plane.hpp"
-#include "ds3d/rgbd.hpp"
-#include "ds3d/voxel_grid.hpp"
-#include "support/depth_scene.hpp"
+#include "ds3d_side.hpp"
 
 namespace {
 
@@ -68,26 +64,8 @@ Timed measure(int reps, const std::function<double()>& fn) {
   return t;
 }
 
-double plane_inliers(const ds3d::Points3f& p, Eigen::Vector4d pl, double t) {
-  pl /= pl.head<3>().norm();
-  std::size_t n = 0;
-  for (Eigen::Index i = 0; i < p.rows(); ++i) {
-    const double d = pl.head<3>().dot(p.row(i).cast<double>().transpose()) + pl[3];
-    n += std::abs(d) < t ? 1 : 0;
-  }
-  return static_cast<double>(n);
-}
-
-ds3d::PinholeCamera camera_for(std::int64_t points) {
-  ds3d::PinholeCamera cam;
-  if (points > 400'000) {
-    cam.width = 1280;
-    cam.height = 800;
-    cam.fx = cam.fy = 1050.0;
-    cam.cx = 639.5;
-    cam.cy = 399.5;
-  }
-  return cam;
+double plane_inliers(const std::vector<float>& xyz, const Eigen::Vector4d& pl, double t) {
+  return ds3d_side::plane_inliers(xyz, {pl[0], pl[1], pl[2], pl[3]}, t);
 }
 
 }  // namespace
@@ -122,21 +100,18 @@ int main(int argc, char** argv) {
       "Open3D / PCL | CPU Open3D / ds3d, PCL / ds3d | check ds3d / Open3D / PCL |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const std::int64_t size : sizes) {
-    const auto frame = ds3d::test::render_room(1, camera_for(size));
-    const ds3d::Points3f pts =
-        ds3d::depth_to_points(frame.depth.data(), frame.camera.width, frame.camera.height,
-                              frame.camera.width, frame.camera)
-            .points;
+    const std::vector<float> pts = ds3d_side::room_cloud(size);
+    const std::size_t np = pts.size() / 3;
     open3d::geometry::PointCloud o3d;
-    o3d.points_.reserve(static_cast<std::size_t>(pts.rows()));
+    o3d.points_.reserve(np);
     pcl::PointCloud<pcl::PointXYZ>::Ptr pc(new pcl::PointCloud<pcl::PointXYZ>);
-    pc->reserve(static_cast<std::size_t>(pts.rows()));
-    for (Eigen::Index i = 0; i < pts.rows(); ++i) {
-      o3d.points_.emplace_back(pts.row(i).cast<double>().transpose());
-      pc->push_back(pcl::PointXYZ(pts(i, 0), pts(i, 1), pts(i, 2)));
+    pc->reserve(np);
+    for (std::size_t i = 0; i < np; ++i) {
+      o3d.points_.emplace_back(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]);
+      pc->push_back(pcl::PointXYZ(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]));
     }
     pc->is_dense = true;
-    const long n = static_cast<long>(pts.rows());
+    const long n = static_cast<long>(np);
     auto row = [&](const char* op, const Timed& a, const Timed& b, const Timed& c) {
       std::printf(
           "| %s | %ld | %.1f | %.1f | %.1f | %.1f× | %.1f× | %.1f / %.1f / %.1f | %.1f×, %.1f× | "
@@ -149,9 +124,7 @@ int main(int argc, char** argv) {
     auto wanted = [&](const char* op) { return ops.find(op) != std::string::npos; };
     for (const double leaf : {0.01, 0.05}) {
       if (!wanted("voxel")) break;
-      const Timed a = measure(reps, [&] {
-        return static_cast<double>(ds3d::voxel_grid(pts, {.leaf_size = leaf}).counts.size());
-      });
+      const Timed a = measure(reps, [&] { return ds3d_side::voxel_count(pts, leaf); });
       const Timed b = measure(
           reps, [&] { return static_cast<double>(o3d.VoxelDownSample(leaf)->points_.size()); });
       const Timed c = measure(reps, [&] {
@@ -164,17 +137,12 @@ int main(int argc, char** argv) {
         return static_cast<double>(out.size());
       });
       row(leaf == 0.01 ? "voxel 0.01 m" : "voxel 0.05 m", a, b, c);
-      ds3d::VoxelGridWorkspace ws;  // the per-frame use: scratch buffers kept across calls
-      const Timed w = measure(reps, [&] {
-        return static_cast<double>(ds3d::voxel_grid(pts, {.leaf_size = leaf}, ws).counts.size());
-      });
+      // The per-frame use: scratch buffers kept across calls.
+      const Timed w = measure(reps, [&] { return ds3d_side::voxel_count_workspace(pts, leaf); });
       row("voxel (ds3d, reused workspace)", w, b, c);
     }
     if (wanted("radius")) {
-      const Timed a = measure(slow_reps, [&] {
-        return static_cast<double>(
-            ds3d::remove_radius_outliers(pts, {.radius = 0.05, .min_neighbors = 16}).kept.size());
-      });
+      const Timed a = measure(slow_reps, [&] { return ds3d_side::radius_kept(pts, false); });
       const Timed b = measure(slow_reps, [&] {
         return static_cast<double>(std::get<1>(o3d.RemoveRadiusOutliers(16, 0.05)).size());
       });
@@ -188,22 +156,12 @@ int main(int argc, char** argv) {
         return static_cast<double>(out.size());
       });
       row("radius R 0.05 m, k 16", a, b, c);
-      const Timed t = measure(slow_reps, [&] {
-        return static_cast<double>(
-            ds3d::remove_radius_outliers(
-                pts, {.radius = 0.05, .min_neighbors = 16, .search = ds3d::RadiusSearch::kKdTree})
-                .kept.size());
-      });
+      const Timed t = measure(slow_reps, [&] { return ds3d_side::radius_kept(pts, true); });
       row("radius (ds3d kKdTree)", t, b, c);
     }
     if (wanted("plane")) {
-      const Timed a = measure(slow_reps, [&] {
-        ds3d::RansacPlaneParams p;
-        p.distance_threshold = 0.01;
-        p.max_iterations = 1000;
-        p.confidence = 1.0;
-        return plane_inliers(pts, ds3d::ransac_plane(pts, p).plane, 0.01);
-      });
+      const Timed a = measure(
+          slow_reps, [&] { return ds3d_side::plane_inliers(pts, ds3d_side::ransac(pts), 0.01); });
       const Timed b = measure(slow_reps, [&] {
         const auto [pl, inl] = o3d.SegmentPlane(0.01, 3, 1000, 1.0);
         return plane_inliers(pts, pl, 0.01);

@@ -7,10 +7,12 @@
 ///
 /// The plane is `a x + b y + c z + d = 0` with `|(a, b, c)| = 1`; a point is an inlier iff
 /// `|a x + b y + c z + d| < t` (strict, as Open3D and PCL). Hypotheses come from random triples
-/// of finite points; the one with most inliers wins (ties: the earliest iteration). Its inliers are
-/// then fitted by least squares (smallest eigenvector of their covariance) and re-selected, so the
-/// returned inliers are exactly the inliers of the returned plane (Open3D 0.16 skips the
-/// re-selection). An optional normal prior restricts hypotheses to planes whose normal lies within
+/// of finite points; the one with most inliers wins (ties: the earliest iteration). It is then
+/// locally optimised (LO-RANSAC, Chum, Matas & Kittler 2003; iterated least squares as in LO+,
+/// Lebeda, Matas & Chum 2012): the points within 3t of the plane are fitted by least squares
+/// (smallest eigenvector of their covariance) and the inliers re-selected, a round being kept only
+/// if it does not lose inliers; so the returned inliers are exactly the inliers of the returned
+/// plane (Open3D 0.16 skips the re-selection). An optional normal prior restricts hypotheses to planes whose normal lies within
 /// an angle of a given up vector, so that the floor is chosen rather than a larger wall.
 
 #include <cstddef>
@@ -39,7 +41,9 @@ struct RansacPlaneParams {
   /// With a normal prior: also require the origin (the sensor, for camera-frame clouds) to lie on
   /// the +normal_prior side of the plane, so a floor below the camera is chosen, not a ceiling.
   bool origin_above = false;
-  /// Least-squares refit + re-selection rounds after RANSAC (0 = return the best hypothesis).
+  /// Local-optimisation rounds after RANSAC (least-squares fit of the points within 3t, then
+  /// re-selection of the < t inliers; 0 = return the best hypothesis). Rounds stop early when one
+  /// changes nothing or would lose inliers.
   std::uint32_t refine_iterations = 3;
   NonFinite on_non_finite = NonFinite::kSkip;  ///< kSkip: never inliers, counted; kThrow: throw
   int num_threads = 1;                         ///< 0 = all hardware threads, < 0 is invalid

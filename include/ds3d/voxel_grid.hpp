@@ -20,6 +20,7 @@
 #include <Eigen/Core>
 
 #include "ds3d/cloud.hpp"
+#include "ds3d/detail/voxel_key.hpp"
 #include "ds3d/errors.hpp"
 
 namespace ds3d {
@@ -63,11 +64,17 @@ struct VoxelGridResult {
 /// Scratch buffers of voxel_grid(). Pass the same workspace to repeated calls (one per thread)
 /// and the fast path allocates nothing but the outputs. Contents are unspecified between calls.
 struct VoxelGridWorkspace {
-  std::unique_ptr<std::uint64_t[]> words;  ///< packed keys, then (key << 32 | index) pairs
-  std::unique_ptr<std::uint64_t[]> tmp;    ///< radix-sort ping-pong buffer (not zero-filled)
-  std::size_t capacity = 0;                ///< words of each of words / tmp
-  std::vector<std::uint32_t> hist;         ///< radix histograms
-  std::vector<std::size_t> runs;           ///< per-chunk bounds, output offsets, dropped counts
+  detail::Scratch<std::uint64_t> words;  ///< sparse box: (key << 32 | index) pairs
+  detail::Scratch<std::uint64_t> tmp;    ///< radix-sort ping-pong buffer (not zero-filled)
+  std::size_t capacity = 0;              ///< words of each of words / tmp
+  std::vector<std::uint32_t> hist;       ///< radix histograms
+  std::vector<std::size_t> runs;         ///< per-chunk bounds, output offsets, dropped counts
+  detail::Scratch<std::uint32_t> cell;   ///< dense box: key, then output row, of each point
+  std::size_t cell_capacity = 0;         ///< entries of cell
+  std::vector<std::uint64_t> occupied;   ///< dense box: occupancy bitmap of the key box
+  std::vector<std::uint32_t> rank;       ///< dense box: set bits before each bitmap word
+  std::vector<double> acc;               ///< dense box: per-voxel sums, then means
+  std::vector<std::uint64_t> best;       ///< dense box: bits of each voxel's best distance
 };
 
 /// Voxel-grid down-sampling: one centroid per occupied voxel of an origin-anchored grid.
@@ -77,13 +84,16 @@ struct VoxelGridWorkspace {
 /// @throws ds3d::InvalidArgument on bad params, on a voxel index whose magnitude reaches 2^62
 ///         (names the coordinate and the value), on a non-finite point under kThrow, or on
 ///         clouds of 2^32 - 1 points or more.
-/// @note O(n) time (radix sort on packed keys; a comparison sort when the occupied key ranges
-///       need more than 64 bits), O(n) extra memory. Identical output for every num_threads.
+/// @note O(n) time, O(n) extra memory: an occupancy bitmap over the key box when it has at most
+///       16 cells per point or 2^16 cells (no sort), else a radix sort on packed keys (a comparison
+///       sort when the occupied key ranges need more than 64 bits). Identical output for every
+///       num_threads and every path (each voxel is summed in input order).
 template <PointCloud C>
 [[nodiscard]] VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params = {});
 
-/// As above, with caller-owned scratch buffers (no per-call allocation beyond the outputs on
-/// the fast path: every axis within ±2^20 voxels and the occupied key box within 2^32 cells).
+/// As above, with caller-owned scratch buffers (no per-call allocation beyond the outputs once
+/// the buffers have grown, on the fast paths: every key within ±2^21 and either at most 16 box
+/// cells per point or a box of at most 2^32 cells).
 template <PointCloud C>
 [[nodiscard]] VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params,
                                          VoxelGridWorkspace& workspace);

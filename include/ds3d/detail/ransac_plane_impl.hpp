@@ -163,24 +163,33 @@ RansacPlaneResult ransac_plane(const C& cloud, const RansacPlaneParams& params) 
   Eigen::Vector4d plane;
   (void)hypothesis(best_it, plane);
   plane[3] -= plane.head<3>().dot(centre);
-  auto select = [&](const Eigen::Vector4d& pl, std::vector<std::uint32_t>& pos) {
+  auto select = [&](const Eigen::Vector4d& pl, double band, std::vector<std::uint32_t>& pos) {
     pos.clear();
     for (std::size_t i = 0; i < n; ++i) {
       const double dist = pl[0] * f.x[i] + pl[1] * f.y[i] + pl[2] * f.z[i] + pl[3];
-      if (std::abs(dist) < t) pos.push_back(static_cast<std::uint32_t>(i));
+      if (std::abs(dist) < band) pos.push_back(static_cast<std::uint32_t>(i));
     }
   };
   std::vector<std::uint32_t> inl;
-  select(plane, inl);
-  // Least-squares refit on the inliers (smallest eigenvector of their covariance), then
-  // re-selection; a round is accepted only if it does not lose inliers.
+  select(plane, t, inl);
+  // Local optimisation (LO-RANSAC, Chum, Matas & Kittler 2003; iterated least squares as in
+  // LO+, Lebeda, Matas & Chum 2012): fit the points within kRefineBand * t of the current plane
+  // by least squares (smallest eigenvector of their covariance), re-select the inliers (< t) and
+  // keep the round only if it does not lose inliers; stop when a round changes nothing.
+  // Fitting the < t inliers alone (the earlier version) is biased towards the current plane
+  // when the noise is not small against t: on the 1M-point room frame (back wall at 4.6 m)
+  // each such round recovered only ~0.3 % of the inliers, 3 rounds ending 2.9 % below PCL's
+  // plane; with the 3t band the first round recovers most of the tilt.
+  constexpr double kRefineBand = 3.0;
   std::vector<std::uint32_t> cand;
+  std::vector<std::uint32_t> band;
   for (std::uint32_t round = 0; round < params.refine_iterations && inl.size() >= 3; ++round) {
+    select(plane, kRefineBand * t, band);
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const std::uint32_t i : inl) mean += Eigen::Vector3d(xs[i], ys[i], zs[i]);
-    mean /= static_cast<double>(inl.size());
+    for (const std::uint32_t i : band) mean += Eigen::Vector3d(xs[i], ys[i], zs[i]);
+    mean /= static_cast<double>(band.size());
     Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const std::uint32_t i : inl) {
+    for (const std::uint32_t i : band) {
       const Eigen::Vector3d q = Eigen::Vector3d(xs[i], ys[i], zs[i]) - mean;
       cov.noalias() += q * q.transpose();
     }
@@ -192,7 +201,7 @@ RansacPlaneResult ransac_plane(const C& cloud, const RansacPlaneParams& params) 
     Eigen::Vector4d refit;
     refit << normal, -normal.dot(mean + centre);
     if (origin_above && (normal.dot(up) >= 0.0 ? refit[3] : -refit[3]) <= 0.0) break;
-    select(refit, cand);
+    select(refit, t, cand);
     if (cand.size() < inl.size()) break;
     const bool same = cand == inl;
     plane = refit;

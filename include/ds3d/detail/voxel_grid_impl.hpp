@@ -3,8 +3,10 @@
 #pragma once
 // Implementation of ds3d::voxel_grid (included by voxel_grid.hpp). Not API.
 
+#include <bit>
 #include <cstring>
 #include <limits>
+#include <type_traits>
 
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/detail/voxel_key.hpp"
@@ -25,6 +27,16 @@ inline void VoxelGridParams::validate() const {
 }
 
 namespace detail {
+
+/// Squared distance of a member to its voxel's mean, the representative criterion (one
+/// expression shared by every path, so that they agree to the last bit).
+[[nodiscard]] inline double member_sq_dist(const Eigen::Vector3f& p, double mx, double my,
+                                           double mz) {
+  const double dx = p.x() - mx;
+  const double dy = p.y() - my;
+  const double dz = p.z() - mz;
+  return dx * dx + dy * dy + dz * dz;
+}
 
 /// Centroids from a general VoxelSort (fallback for keys beyond ±2^20 or > 32 key bits).
 template <PointCloud C>
@@ -85,11 +97,7 @@ VoxelGridResult voxel_grid_from_sort(const C& cloud, const VoxelGridParams& para
       std::uint32_t best = s.index[lo];
       double best_d = std::numeric_limits<double>::infinity();
       for (std::uint32_t k = lo; k < hi; ++k) {
-        const Eigen::Vector3f p = cloud::point(cloud, s.index[k]);
-        const double dx = p.x() - mx;
-        const double dy = p.y() - my;
-        const double dz = p.z() - mz;
-        const double d = dx * dx + dy * dy + dz * dz;
+        const double d = member_sq_dist(cloud::point(cloud, s.index[k]), mx, my, mz);
         if (d < best_d) {  // strict: the first (lowest input index) wins ties
           best_d = d;
           best = s.index[k];
@@ -129,6 +137,362 @@ inline std::uint64_t* radix_sort_pairs(std::uint64_t* a, std::uint64_t* tmp, std
   return a;
 }
 
+/// x / d for x < 2^32 by a double reciprocal, corrected to the exact quotient.
+struct FastDiv {
+  std::uint64_t d;
+  double inv;
+  explicit FastDiv(std::uint64_t divisor) : d(divisor), inv(1.0 / static_cast<double>(divisor)) {}
+  [[nodiscard]] std::uint64_t operator()(std::uint64_t x) const {
+    auto q = static_cast<std::uint64_t>(static_cast<double>(x) * inv);
+    if (q * d > x) {
+      --q;
+    } else if ((q + 1) * d <= x) {
+      ++q;
+    }
+    return q;
+  }
+};
+
+/// Dense-box path of voxel_grid: the key box has at most ~16 cells per point. Keys go into an
+/// occupancy bitmap whose prefix popcounts give each voxel its output row in key order; the
+/// members are then summed in input order straight into their row (no sort), and a second pass
+/// picks the representatives. The sums are those of the sorted path bit for bit (same order).
+template <PointCloud C>
+void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads, const KeyGrid& g,
+                      const std::array<std::uint64_t, 3>& range, std::uint64_t cells,
+                      VoxelGridWorkspace& ws, VoxelGridResult& r) {
+  constexpr const char* kFn = "ds3d::voxel_grid";
+  const std::size_t n = cloud::size(cloud);
+  if (ws.cell_capacity < n) {
+    ws.cell = make_scratch<std::uint32_t>(n);
+    ws.cell_capacity = n;
+  }
+  std::uint32_t* cell = ws.cell.get();
+  const std::size_t words = static_cast<std::size_t>((cells + 63) / 64);
+  ws.occupied.assign(words, 0U);
+  std::uint64_t* occ = ws.occupied.data();
+  const bool skip = r.num_non_finite > 0;  // kNoKey entries to skip (else no test per point)
+  auto mark = [occ, skip](const std::uint32_t* keys, std::size_t len) {
+    if (skip) {
+      for (std::size_t j = 0; j < len; ++j) {
+        const std::uint32_t k = keys[j];
+        if (k != kNoKey) occ[k >> 6U] |= std::uint64_t{1} << (k & 63U);
+      }
+    } else {
+      for (std::size_t j = 0; j < len; ++j) {
+        occ[keys[j] >> 6U] |= std::uint64_t{1} << (keys[j] & 63U);
+      }
+    }
+  };
+  // Pass 2: keys (parallel) and occupancy.
+  if (threads == 1) {
+    for_each_key_block(cloud, 0, n, g, kFn,
+                       [&](std::size_t s, std::size_t len, const std::uint32_t* keys) {
+                         std::copy(keys, keys + len, cell + s);
+                         mark(keys, len);
+                       });
+  } else {
+    parallel_chunks(n, static_cast<std::size_t>(threads), threads,
+                    [&](std::size_t b, std::size_t e, std::size_t) {
+                      for_each_key_block(
+                          cloud, b, e, g, kFn,
+                          [&](std::size_t s, std::size_t len, const std::uint32_t* keys) {
+                            std::copy(keys, keys + len, cell + s);
+                          });
+                    });
+    mark(cell, n);
+  }
+  ws.rank.resize(words);
+  std::uint32_t* rank = ws.rank.data();
+  std::size_t voxels = 0;
+  for (std::size_t w = 0; w < words; ++w) {
+    rank[w] = static_cast<std::uint32_t>(voxels);
+    voxels += static_cast<std::size_t>(std::popcount(occ[w]));
+  }
+  // Pass 3: each point's row; sums in input order (= the sorted path's order).
+  ws.acc.assign(4 * voxels, 0.0);  // sums, then means (one pad)
+  double* const acc = ws.acc.data();
+  r.counts.assign(voxels, 0U);
+  std::uint32_t* const cnt = r.counts.data();
+  const std::uint64_t* const occ_c = occ;
+  const std::uint32_t* const rank_c = rank;
+  auto sum_pass = [&](auto has_skip) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t k = cell[i];
+      if constexpr (decltype(has_skip)::value) {
+        if (k == kNoKey) continue;
+      }
+      const std::uint64_t below = occ_c[k >> 6U] & ((std::uint64_t{1} << (k & 63U)) - 1);
+      const std::uint32_t row = rank_c[k >> 6U] + static_cast<std::uint32_t>(std::popcount(below));
+      cell[i] = row;
+      const Eigen::Vector3f p = cloud::point(cloud, i);
+      double* a = acc + 4 * std::size_t{row};
+      a[0] += p.x();
+      a[1] += p.y();
+      a[2] += p.z();
+      ++cnt[row];
+    }
+  };
+  if (skip) {
+    sum_pass(std::true_type{});
+  } else {
+    sum_pass(std::false_type{});
+  }
+  for (std::size_t v = 0; v < voxels; ++v) {
+    double* a = acc + 4 * v;
+    const double inv_cnt = 1.0 / static_cast<double>(cnt[v]);
+    a[0] *= inv_cnt;
+    a[1] *= inv_cnt;
+    a[2] *= inv_cnt;
+  }
+  // Pass 4: representatives: the first member (input order) nearest the mean. Distances are
+  // >= 0, so their bit patterns order like the values: integer compare and conditional moves,
+  // no branch on the unpredictable "is it nearer" (measured ~10 % faster than the branch).
+  r.representative.resize(voxels);
+  std::uint32_t* const rep = r.representative.data();
+  ws.best.assign(voxels, std::bit_cast<std::uint64_t>(std::numeric_limits<double>::infinity()));
+  std::uint64_t* const best = ws.best.data();
+  auto rep_pass = [&](auto has_skip) {
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t row = cell[i];
+      if constexpr (decltype(has_skip)::value) {
+        if (row == kNoKey) continue;
+      }
+      const double* a = acc + 4 * std::size_t{row};
+      const auto d =
+          std::bit_cast<std::uint64_t>(member_sq_dist(cloud::point(cloud, i), a[0], a[1], a[2]));
+      const std::uint64_t old = best[row];
+      const bool better = d < old;  // strict: earlier members win ties
+      best[row] = better ? d : old;
+      rep[row] = better ? static_cast<std::uint32_t>(i) : rep[row];
+    }
+  };
+  if (skip) {
+    rep_pass(std::true_type{});
+  } else {
+    rep_pass(std::false_type{});
+  }
+  // Outputs in key order (set bits in ascending order), dropping voxels below min_points.
+  std::size_t rows = voxels;
+  if (params.min_points > 1) {
+    rows = 0;
+    for (std::size_t v = 0; v < voxels; ++v) {
+      if (cnt[v] >= params.min_points) {
+        ++rows;
+      } else {
+        r.num_dropped += cnt[v];
+      }
+    }
+  }
+  r.centroids.resize(static_cast<Eigen::Index>(rows), 3);
+  r.keys.resize(static_cast<Eigen::Index>(rows), 3);
+  float* out_c = r.centroids.data();
+  std::int64_t* out_k = r.keys.data();
+  const FastDiv div_yz(range[1] * range[2]);
+  const FastDiv div_z(range[2]);
+  std::size_t out = 0;
+  std::size_t v = 0;
+  for (std::size_t w = 0; w < words; ++w) {
+    for (std::uint64_t bits = occ[w]; bits != 0; bits &= bits - 1, ++v) {
+      if (cnt[v] < params.min_points) continue;
+      const std::uint64_t k =
+          64 * std::uint64_t{w} + static_cast<std::uint64_t>(std::countr_zero(bits));
+      const std::uint64_t kx = div_yz(k);
+      const std::uint64_t rest = k - kx * div_yz.d;
+      const std::uint64_t ky = div_z(rest);
+      const double* a = acc + 4 * v;
+      out_c[3 * out] = static_cast<float>(a[0]);
+      out_c[3 * out + 1] = static_cast<float>(a[1]);
+      out_c[3 * out + 2] = static_cast<float>(a[2]);
+      out_k[3 * out] = static_cast<std::int64_t>(kx) + g.lo[0];
+      out_k[3 * out + 1] = static_cast<std::int64_t>(ky) + g.lo[1];
+      out_k[3 * out + 2] = static_cast<std::int64_t>(rest - ky * div_z.d) + g.lo[2];
+      cnt[out] = cnt[v];  // out <= v: compaction in place
+      rep[out] = rep[v];
+      ++out;
+    }
+  }
+  r.counts.resize(rows);
+  r.representative.resize(rows);
+}
+
+/// Sparse-box path of voxel_grid: (key << 32 | index) pairs, bit-packed keys of `bits` <= 32
+/// bits (kNoKey, all ones, sorts last), stable LSD radix sort, then one row per run of equal keys.
+template <PointCloud C>
+void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int threads, const KeyGrid& g,
+                       const std::array<int, 3>& b, int bits, VoxelGridWorkspace& ws,
+                       VoxelGridResult& r) {
+  constexpr const char* kFn = "ds3d::voxel_grid";
+  const std::size_t n = cloud::size(cloud);
+  const std::size_t m = n - r.num_non_finite;
+  if (ws.capacity < n) {  // default-initialised: no zero-fill of buffers written before read
+    ws.words = make_scratch<std::uint64_t>(n);
+    ws.tmp = make_scratch<std::uint64_t>(n);
+    ws.capacity = n;
+  }
+  const int passes = (bits + 10) / 11;
+  const int digit = passes == 0 ? 0 : (bits + passes - 1) / passes;
+  const std::size_t buckets = std::size_t{1} << digit;
+  const std::uint64_t dmask = buckets - 1;
+  // Pass 2: pairs and all radix histograms (always three: a pass beyond `passes` sees only
+  // zero bits, so the counting loop has no inner loop), one set per chunk.
+  const auto chunks = static_cast<std::size_t>(std::max(1, threads));
+  ws.hist.assign(buckets * 3 * chunks, 0U);
+  std::uint64_t* a = ws.words.get();
+  auto pairs = [&](std::size_t b0, std::size_t e0, std::size_t ch) {
+    std::uint32_t* h = ws.hist.data() + 3 * buckets * ch;
+    for_each_key_block(cloud, b0, e0, g, kFn,
+                       [&](std::size_t s, std::size_t len, const std::uint32_t* keys) {
+                         for (std::size_t j = 0; j < len; ++j) {
+                           const std::uint64_t key = keys[j];
+                           a[s + j] = (key << 32U) | (s + j);
+                           ++h[key & dmask];
+                           ++h[buckets + ((key >> digit) & dmask)];
+                           ++h[2 * buckets + ((key >> (2 * digit)) & dmask)];
+                         }
+                       });
+  };
+  if (chunks == 1) {
+    pairs(0, n, 0);
+  } else {
+    parallel_chunks(n, chunks, threads, pairs);
+    for (std::size_t ch = 1; ch < chunks; ++ch) {
+      for (std::size_t k = 0; k < 3 * buckets; ++k) {
+        ws.hist[k] += ws.hist[3 * buckets * ch + k];
+      }
+    }
+  }
+  // Pass 3: stable radix sort over the used bits only (0 to 3 passes); kNoKey pairs end last.
+  const std::uint64_t* sorted =
+      radix_sort_pairs(a, ws.tmp.get(), n, ws.hist.data(), passes, digit, 32);
+
+  // Pass 4: voxels are runs of equal keys among the m finite points. Chunks start at voxel
+  // boundaries; each fills its rows from its first row on (sums in input order: identical for
+  // any thread count).
+  const std::uint32_t min_pts = params.min_points;
+  ws.runs.assign(3 * chunks + 2, 0);
+  std::size_t* bound = ws.runs.data();                // chunk c covers [bound[c], bound[c + 1])
+  std::size_t* offset = ws.runs.data() + chunks + 1;  // first output row of chunk c
+  std::size_t* chunk_dropped = ws.runs.data() + 2 * chunks + 2;  // points dropped by chunk c
+  for (std::size_t c = 0; c < chunks; ++c) {
+    std::size_t s = chunk_range(m, chunks, c).first;
+    while (s > 0 && s < m && (sorted[s] >> 32U) == (sorted[s - 1] >> 32U)) ++s;
+    bound[c] = std::max(s, c == 0 ? 0 : bound[c - 1]);
+  }
+  bound[chunks] = m;
+  // Rows and dropped points of chunk c, so that the outputs are allocated once at their exact
+  // size (allocating for every point and trimming made glibc return and re-fault the pages: 10x
+  // the page faults per call).
+  auto count_chunk = [&](std::size_t c) {
+    const std::size_t end = bound[c + 1];
+    std::size_t kept = 0;
+    std::size_t dropped = 0;
+    if (min_pts == 1) {  // rows = key changes (vectorises)
+      for (std::size_t k = bound[c] + 1; k < end; ++k) {
+        kept += (sorted[k] >> 32U) != (sorted[k - 1] >> 32U) ? 1 : 0;
+      }
+      offset[c + 1] = end > bound[c] ? kept + 1 : 0;
+      return dropped;
+    }
+    for (std::size_t lo = bound[c], hi = 0; lo < end; lo = hi) {
+      const std::uint64_t key = sorted[lo] >> 32U;
+      for (hi = lo + 1; hi < end && (sorted[hi] >> 32U) == key; ++hi) {
+      }
+      if (hi - lo >= min_pts) {
+        ++kept;
+      } else {
+        dropped += hi - lo;
+      }
+    }
+    offset[c + 1] = kept;
+    return dropped;
+  };
+  const auto sx = static_cast<unsigned>(b[1] + b[2]);
+  const auto sy = static_cast<unsigned>(b[2]);
+  const std::uint64_t zmask = (std::uint64_t{1} << b[2]) - 1;
+  const std::uint64_t ymask = (std::uint64_t{1} << b[1]) - 1;
+  // Fills the rows of chunk c from offset[c] on. (Everything read in the loop is a local copy:
+  // the int64 / size_t output stores could otherwise alias it.)
+  auto fill_chunk = [&](std::size_t c) {
+    std::size_t row = offset[c];
+    std::int64_t* const out_key = r.keys.data();
+    float* const out_c = r.centroids.data();
+    std::uint32_t* const out_n = r.counts.data();
+    std::uint32_t* const out_rep = r.representative.data();
+    const std::uint64_t* const src = sorted;
+    const std::size_t end = bound[c + 1];
+    const std::size_t min_count = min_pts;
+    const std::int64_t lo0 = g.lo[0];
+    const std::int64_t lo1 = g.lo[1];
+    const std::int64_t lo2 = g.lo[2];
+    const unsigned shift_x = sx;
+    const unsigned shift_y = sy;
+    const std::uint64_t mask_y = ymask;
+    const std::uint64_t mask_z = zmask;
+    for (std::size_t lo = bound[c], hi = 0; lo < end; lo = hi) {
+      const std::uint64_t key = src[lo] >> 32U;
+      for (hi = lo + 1; hi < end && (src[hi] >> 32U) == key; ++hi) {
+      }
+      const std::size_t cnt = hi - lo;
+      if (cnt < min_count) continue;
+      out_key[3 * row] = static_cast<std::int64_t>(key >> shift_x) + lo0;
+      out_key[3 * row + 1] = static_cast<std::int64_t>((key >> shift_y) & mask_y) + lo1;
+      out_key[3 * row + 2] = static_cast<std::int64_t>(key & mask_z) + lo2;
+      out_n[row] = static_cast<std::uint32_t>(cnt);
+      const auto first = static_cast<std::uint32_t>(src[lo]);
+      if (cnt == 1) {
+        const Eigen::Vector3f p = cloud::point(cloud, first);
+        out_c[3 * row] = p.x();
+        out_c[3 * row + 1] = p.y();
+        out_c[3 * row + 2] = p.z();
+        out_rep[row] = first;
+        ++row;
+        continue;
+      }
+      double sum_x = 0;
+      double sum_y = 0;
+      double sum_z = 0;
+      for (std::size_t k = lo; k < hi; ++k) {
+        const Eigen::Vector3f p = cloud::point(cloud, static_cast<std::uint32_t>(src[k]));
+        sum_x += p.x();
+        sum_y += p.y();
+        sum_z += p.z();
+      }
+      const double inv_cnt = 1.0 / static_cast<double>(cnt);
+      const double mx = sum_x * inv_cnt;
+      const double my = sum_y * inv_cnt;
+      const double mz = sum_z * inv_cnt;
+      std::uint32_t best = first;
+      double best_d = std::numeric_limits<double>::infinity();
+      for (std::size_t k = lo; k < hi; ++k) {
+        const auto i = static_cast<std::uint32_t>(src[k]);
+        const double d = member_sq_dist(cloud::point(cloud, i), mx, my, mz);
+        best = d < best_d ? i : best;  // strict: the first (lowest input index) wins ties
+        best_d = d < best_d ? d : best_d;
+      }
+      out_c[3 * row] = static_cast<float>(mx);
+      out_c[3 * row + 1] = static_cast<float>(my);
+      out_c[3 * row + 2] = static_cast<float>(mz);
+      out_rep[row] = best;
+      ++row;
+    }
+  };
+  parallel_chunks(chunks, chunks, threads, [&](std::size_t cb, std::size_t ce, std::size_t) {
+    for (std::size_t c = cb; c < ce; ++c) chunk_dropped[c] = count_chunk(c);
+  });
+  for (std::size_t c = 0; c < chunks; ++c) r.num_dropped += chunk_dropped[c];
+  offset[0] = 0;
+  for (std::size_t c = 0; c < chunks; ++c) offset[c + 1] += offset[c];
+  const std::size_t rows = offset[chunks];
+  r.centroids.resize(static_cast<Eigen::Index>(rows), 3);
+  r.keys.resize(static_cast<Eigen::Index>(rows), 3);
+  r.counts.resize(rows);
+  r.representative.resize(rows);
+  parallel_chunks(chunks, chunks, threads, [&](std::size_t cb, std::size_t ce, std::size_t) {
+    for (std::size_t c = cb; c < ce; ++c) fill_chunk(c);
+  });
+}
+
 }  // namespace detail
 
 template <PointCloud C>
@@ -148,178 +512,47 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelG
   VoxelGridResult r;
   if (n == 0) return r;
   const std::array<double, 3> leaf{params.leaf_size.dx, params.leaf_size.dy, params.leaf_size.dz};
-  if (ws.capacity < n) {  // default-initialised: no zero-fill of buffers written before read
-    ws.words = std::make_unique_for_overwrite<std::uint64_t[]>(n);
-    ws.tmp = std::make_unique_for_overwrite<std::uint64_t[]>(n);
-    ws.capacity = n;
+  // Pass 1 (parallel, streaming): the exact key box of the finite points.
+  const detail::VoxelBox box = detail::voxel_box(cloud, leaf, params.on_non_finite, threads, kFn);
+  r.num_non_finite = box.non_finite;
+  if (box.non_finite == n) return r;
+  constexpr std::int64_t kLim = std::int64_t{1} << 21;  // grid_keys_block's error bound
+  bool fits = true;
+  std::array<std::uint64_t, 3> range{};  // cells per axis
+  std::array<int, 3> b{};                // bits per field
+  for (std::size_t d = 0; d < 3; ++d) {
+    fits = fits && box.lo[d] > -kLim && box.hi[d] < kLim;
+    range[d] = static_cast<std::uint64_t>(box.hi[d] - box.lo[d]) + 1;
+    b[d] = detail::bits_for(range[d] - 1);
   }
-  // Pass 1 (parallel, SSE2): exact packed key of every point, per-axis key bounds.
-  const detail::PackedKeyInfo info =
-      detail::packed_voxel_keys(cloud, leaf, params.on_non_finite, threads, kFn, ws.words.get());
-  r.num_non_finite = info.non_finite;
-  const std::size_t m = n - info.non_finite;
-  if (m == 0) return r;
-  int bits = 64;
-  std::array<int, 3> b{};
-  if (!info.wide) {
-    for (std::size_t d = 0; d < 3; ++d) {
-      b[d] = detail::bits_for(static_cast<std::uint64_t>(info.hi[d] - info.lo[d]));
+  if (fits) {
+    detail::KeyGrid g;
+    g.leaf = leaf;
+    g.inv = {1.0 / leaf[0], 1.0 / leaf[1], 1.0 / leaf[2]};
+    g.lo = box.lo;
+    // Dense box (typical for depth frames at a few cm): no sort at all, an occupancy bitmap gives
+    // each voxel its row. A box of up to 16 cells per point costs at most 2 bytes per point.
+    const std::uint64_t cells = range[0] * range[1] * range[2];  // < 2^66 / 2^3: see fits
+    if (b[0] + b[1] + b[2] <= 40 &&
+        cells <= std::max<std::uint64_t>(16 * std::uint64_t{n}, 1U << 16) &&
+        cells < detail::kNoKey) {
+      g.mul = {static_cast<std::uint32_t>(range[1] * range[2]),
+               static_cast<std::uint32_t>(range[2]), 1U};
+      detail::voxel_grid_dense(cloud, params, threads, g, range, cells, ws, r);
+      return r;
     }
-    bits = b[0] + b[1] + b[2];
-  }
-  if (bits > 32) {  // rare: general path (int64 triples or 64-bit keys, keys recomputed)
-    return detail::voxel_grid_from_sort(
-        cloud, params, threads,
-        detail::sort_by_voxel(cloud, leaf, params.on_non_finite, threads, kFn));
-  }
-
-  // Pass 2 (serial, streaming): compact each key to its used bits (fields relative to their
-  // minima, lexicographic order kept), pair it with the index, count all radix histograms.
-  constexpr std::int64_t kHalf = detail::PackedKeyInfo::kHalf;
-  const std::uint64_t ox = static_cast<std::uint64_t>(info.lo[0] + kHalf);
-  const std::uint64_t oy = static_cast<std::uint64_t>(info.lo[1] + kHalf);
-  const std::uint64_t oz = static_cast<std::uint64_t>(info.lo[2] + kHalf);
-  const auto sy = static_cast<unsigned>(b[2]);
-  const auto sx = static_cast<unsigned>(b[1] + b[2]);
-  const int passes = (bits + 10) / 11;
-  const int digit = passes == 0 ? 0 : (bits + passes - 1) / passes;
-  const std::size_t buckets = std::size_t{1} << digit;
-  const std::uint64_t dmask = buckets - 1;
-  // Always three histograms: a pass beyond `passes` sees only zero bits (bucket 0), so the
-  // counting loop has no inner loop.
-  ws.hist.assign(buckets * 3, 0U);
-  std::uint64_t* a = ws.words.get();
-  std::uint32_t* hist = ws.hist.data();
-  {
-    std::size_t k = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint64_t w = a[i];
-      if (w == detail::kNonFiniteKey) continue;
-      const std::uint64_t fx = (w >> 42U) - ox;
-      const std::uint64_t fy = ((w >> 21U) & 0x1FFFFFU) - oy;
-      const std::uint64_t fz = (w & 0x1FFFFFU) - oz;
-      const std::uint64_t key = (fx << sx) | (fy << sy) | fz;
-      a[k++] = (key << 32U) | i;  // k <= i: in place
-      ++hist[key & dmask];
-      ++hist[buckets + ((key >> digit) & dmask)];
-      ++hist[2 * buckets + ((key >> (2 * digit)) & dmask)];
+    const int bits = b[0] + b[1] + b[2] + (box.non_finite > 0 ? 1 : 0);  // + 1: kNoKey last
+    if (bits <= 32) {
+      g.mul = {1U << static_cast<unsigned>(b[1] + b[2]), 1U << static_cast<unsigned>(b[2]), 1U};
+      detail::voxel_grid_sorted(cloud, params, threads, g, b, bits, ws, r);
+      return r;
     }
   }
-  // Pass 3: stable radix sort over the used bits only (0 to 3 passes).
-  const std::uint64_t* sorted =
-      detail::radix_sort_pairs(a, ws.tmp.get(), m, hist, passes, digit, 32);
-
-  // Pass 4: voxels are runs of equal keys. Chunks start at voxel boundaries; each fills its rows
-  // from its first row on (sums in input order: identical for any thread count).
-  const std::uint32_t min_pts = params.min_points;
-  const auto chunks = static_cast<std::size_t>(std::max(1, threads));
-  ws.runs.assign(3 * chunks + 2, 0);
-  std::size_t* bound = ws.runs.data();                // chunk c covers [bound[c], bound[c + 1])
-  std::size_t* offset = ws.runs.data() + chunks + 1;  // first output row of chunk c
-  std::size_t* chunk_dropped = ws.runs.data() + 2 * chunks + 2;  // points dropped by chunk c
-  for (std::size_t c = 0; c < chunks; ++c) {
-    std::size_t s = detail::chunk_range(m, chunks, c).first;
-    while (s > 0 && s < m && (sorted[s] >> 32U) == (sorted[s - 1] >> 32U)) ++s;
-    bound[c] = std::max(s, c == 0 ? 0 : bound[c - 1]);
-  }
-  bound[chunks] = m;
-  // Rows and dropped points of chunk c, so that the outputs are allocated once at their exact
-  // size (allocating for every point and trimming made glibc return and re-fault the pages: 10x
-  // the page faults per call).
-  auto count_chunk = [&](std::size_t c) {
-    std::size_t kept = 0;
-    std::size_t dropped = 0;
-    for (std::size_t lo = bound[c], hi = 0; lo < bound[c + 1]; lo = hi) {
-      const std::uint64_t key = sorted[lo] >> 32U;
-      for (hi = lo + 1; hi < bound[c + 1] && (sorted[hi] >> 32U) == key; ++hi) {
-      }
-      if (hi - lo >= min_pts) {
-        ++kept;
-      } else {
-        dropped += hi - lo;
-      }
-    }
-    offset[c + 1] = kept;
-    return dropped;
-  };
-  const std::uint64_t zmask = (std::uint64_t{1} << b[2]) - 1;
-  const std::uint64_t ymask = (std::uint64_t{1} << b[1]) - 1;
-  // Fills the rows of chunk c from offset[c] on.
-  auto fill_chunk = [&](std::size_t c) {
-    std::size_t row = offset[c];
-    std::int64_t* out_key = r.keys.data();
-    float* out_c = r.centroids.data();
-    std::uint32_t* out_n = r.counts.data();
-    std::uint32_t* out_rep = r.representative.data();
-    for (std::size_t lo = bound[c], hi = 0; lo < bound[c + 1]; lo = hi) {
-      const std::uint64_t key = sorted[lo] >> 32U;
-      for (hi = lo + 1; hi < bound[c + 1] && (sorted[hi] >> 32U) == key; ++hi) {
-      }
-      const std::size_t cnt = hi - lo;
-      if (cnt < min_pts) continue;
-      out_key[3 * row] = static_cast<std::int64_t>(key >> sx) + info.lo[0];
-      out_key[3 * row + 1] = static_cast<std::int64_t>((key >> sy) & ymask) + info.lo[1];
-      out_key[3 * row + 2] = static_cast<std::int64_t>(key & zmask) + info.lo[2];
-      out_n[row] = static_cast<std::uint32_t>(cnt);
-      const auto first = static_cast<std::uint32_t>(sorted[lo]);
-      if (cnt == 1) {
-        const Eigen::Vector3f p = cloud::point(cloud, first);
-        out_c[3 * row] = p.x();
-        out_c[3 * row + 1] = p.y();
-        out_c[3 * row + 2] = p.z();
-        out_rep[row] = first;
-        ++row;
-        continue;
-      }
-      double sum_x = 0;
-      double sum_y = 0;
-      double sum_z = 0;
-      for (std::size_t k = lo; k < hi; ++k) {
-        const Eigen::Vector3f p = cloud::point(cloud, static_cast<std::uint32_t>(sorted[k]));
-        sum_x += p.x();
-        sum_y += p.y();
-        sum_z += p.z();
-      }
-      const double inv_cnt = 1.0 / static_cast<double>(cnt);
-      const double mx = sum_x * inv_cnt;
-      const double my = sum_y * inv_cnt;
-      const double mz = sum_z * inv_cnt;
-      std::uint32_t best = first;
-      double best_d = std::numeric_limits<double>::infinity();
-      for (std::size_t k = lo; k < hi; ++k) {
-        const auto i = static_cast<std::uint32_t>(sorted[k]);
-        const Eigen::Vector3f p = cloud::point(cloud, i);
-        const double dx = p.x() - mx;
-        const double dy = p.y() - my;
-        const double dz = p.z() - mz;
-        const double d = dx * dx + dy * dy + dz * dz;
-        best = d < best_d ? i : best;  // strict: the first (lowest input index) wins ties
-        best_d = d < best_d ? d : best_d;
-      }
-      out_c[3 * row] = static_cast<float>(mx);
-      out_c[3 * row + 1] = static_cast<float>(my);
-      out_c[3 * row + 2] = static_cast<float>(mz);
-      out_rep[row] = best;
-      ++row;
-    }
-  };
-  detail::parallel_chunks(chunks, chunks, threads,
-                          [&](std::size_t cb, std::size_t ce, std::size_t) {
-                            for (std::size_t c = cb; c < ce; ++c) chunk_dropped[c] = count_chunk(c);
-                          });
-  for (std::size_t c = 0; c < chunks; ++c) r.num_dropped += chunk_dropped[c];
-  offset[0] = 0;
-  for (std::size_t c = 0; c < chunks; ++c) offset[c + 1] += offset[c];
-  const std::size_t rows = offset[chunks];
-  r.centroids.resize(static_cast<Eigen::Index>(rows), 3);
-  r.keys.resize(static_cast<Eigen::Index>(rows), 3);
-  r.counts.resize(rows);
-  r.representative.resize(rows);
-  detail::parallel_chunks(chunks, chunks, threads,
-                          [&](std::size_t cb, std::size_t ce, std::size_t) {
-                            for (std::size_t c = cb; c < ce; ++c) fill_chunk(c);
-                          });
-  return r;
+  // Rare: keys beyond ±2^21 or a sparse box of more than 2^32 cells (int64 triples or 64-bit
+  // keys, keys recomputed).
+  return detail::voxel_grid_from_sort(
+      cloud, params, threads,
+      detail::sort_by_voxel(cloud, leaf, params.on_non_finite, threads, kFn));
 }
 
 }  // namespace ds3d
