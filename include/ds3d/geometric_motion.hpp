@@ -84,9 +84,10 @@ struct GeometricMotionParams {
   int warp_window = 3;  ///< half-size of the depth-edge / min-depth window of the warp [px], >= 0
   double warp_chi2 = 10.83;     ///< χ²(1 dof, 99.9%) of the warp's depth test, > 0
   double min_warp_area = 0.01;  ///< smallest warp candidate (metric area of its pixels) [m²], > 0
-  /// The source's ORB runs on the image resized by this factor (0.5: a quarter of the pixels;
-  /// the pose and the keypoint test need no more), in (0, 1].
-  double image_scale = 0.5;
+  /// The source's ORB runs on the image resized by this factor, in (0, 1]. 0.5 (a quarter of
+  /// the pixels) cuts the source's instructions by a third, but finds fewer moving keypoints:
+  /// Bonn crowd ATE 0.0228 m against 0.0209 m at 1 (docs/dynamic.md).
+  double image_scale = 1.0;
   double max_depth = 6.0;         ///< depths beyond this are ignored [m], > 0
   int min_cluster_size = 6;       ///< HDBSCAN min_cluster_size (moving keypoints), >= 2
   int min_samples = 3;            ///< HDBSCAN min_samples, >= 1
