@@ -130,8 +130,10 @@ struct TestedKeypoint {
 /// The `geometric` dynamic-object source (see the file comment for the method).
 /// @note Deterministic for a given frame sequence. Keeps state across frames: call detect() in
 ///       frame order (the SLAM pipeline does); not thread-safe. Cost per frame: one ORB
-///       extraction, an O(N²) Hamming match of N = num_features, PnP-RANSAC, HDBSCAN on the
-///       moving keypoints only, and a depth warp of the grid pixels around candidates.
+///       extraction (at image_scale), an O(N²) popcount Hamming match of N = num_features,
+///       PnP-RANSAC, HDBSCAN on the moving keypoints only, two 7×7 min/max filters of the depth
+///       and an O(pixels / warp_stride²) dense warp with connected components; about 90 M
+///       instructions per 640×480 frame (docs/benchmarks.md).
 class GeometricMotionSource final : public DynamicObjectSource {
  public:
   /// @throws ds3d::InvalidArgument on bad params.
