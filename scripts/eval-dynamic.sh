@@ -5,13 +5,16 @@
 # ds3d-slam with --dynamic none and geometric on bonn_crowd_first300 and tum_fr1_xyz_first400,
 # ATE RMSE from ds3d-eval against the raw groundtruth.txt (TUM evaluate_ate.py rules: 0.02 s
 # association, Horn alignment without scale), fps and detect/filter times from --stats.
+# With DS3D_EVAL_SYNTH=1 also the synthetic walking_*/sitting_* scenarios (ds3d-synth, 240 frames,
+# seed 1), ATE against the generator's groundtruth.
 # Usage: scripts/eval-dynamic.sh [BUILD_DIR] ; data from $DS3D_DATA_DIR (default ../shared/data).
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 build="${1:-$here/build}"
 data="${DS3D_DATA_DIR:-$here/../shared/data}"
 out="${DS3D_EVAL_OUT:-$build/eval-dynamic}"
-if [[ ! -d "$data/bonn_crowd_first300" && ! -d "$data/tum_fr1_xyz_first400" ]]; then
+synth="${DS3D_EVAL_SYNTH:-0}"
+if [[ ! -d "$data/bonn_crowd_first300" && ! -d "$data/tum_fr1_xyz_first400" && "$synth" != 1 ]]; then
   echo "eval-dynamic: no recorded data under $data (set DS3D_DATA_DIR); skipping"
   exit 0
 fi
@@ -35,3 +38,17 @@ for seq in bonn_crowd_first300 tum_fr1_xyz_first400; do
     printf "| %s | %s | %s | %s | %s | %s | %s | %s |\n" "$seq" "$dyn" "$rmse" "$n" ${fps}
   done
 done
+if [[ "$synth" == 1 ]]; then
+  [[ -x "$build/bin/ds3d-synth" ]] || { echo "eval-dynamic: $build/bin/ds3d-synth not built" >&2; exit 1; }
+  printf "\n| synthetic (240 frames, seed 1) | --dynamic | ATE RMSE [m] | pairs | tracked | fps median | detect median [ms] | filter median [ms] |\n|---|---|---|---|---|---|---|---|\n"
+  for sc in walking_xyz walking_static walking_halfsphere walking_rpy sitting_static sitting_xyz; do
+    "$build/bin/ds3d-synth" "$out/synth_$sc" --scenario "$sc" --frames 240 --seed 1 >/dev/null
+    for dyn in none geometric; do
+      "$build/bin/ds3d-slam" "$out/synth_$sc" --dynamic "$dyn" --out "$out/synth_${sc}_${dyn}.txt" \
+        --stats "$out/synth_${sc}_${dyn}.json" --quiet
+      read -r rmse n < <(ate "$out/synth_${sc}_${dyn}.txt" "$out/synth_$sc/groundtruth.txt")
+      fps=$(/usr/bin/python3 -c "import json,sys; s=json.load(open(sys.argv[1])); print(f\"{s['tracked_frames']}/{s['frames']} {s['fps_median']:.1f} {s['stages']['detect']['median_ms']:.2f} {s['stages']['filter']['median_ms']:.2f}\")" "$out/synth_${sc}_${dyn}.json")
+      printf "| %s | %s | %s | %s | %s | %s | %s | %s |\n" "$sc" "$dyn" "$rmse" "$n" ${fps}
+    done
+  done
+fi

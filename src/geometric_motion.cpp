@@ -3,6 +3,9 @@
 #include "ds3d/geometric_motion.hpp"
 
 #include <algorithm>
+#include <array>
+#include <bit>
+#include <cstring>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -43,7 +46,14 @@ void GeometricMotionParams::validate() const {
   DS3D_CHECK(min_pose_inliers >= 6, f, ": min_pose_inliers must be >= 6 (got ", min_pose_inliers,
              ")");
   DS3D_CHECK(warp_stride >= 1, f, ": warp_stride must be >= 1 (got ", warp_stride, ")");
+  DS3D_CHECK(warp_gap >= 1, f, ": warp_gap must be >= 1 (got ", warp_gap, ")");
   DS3D_CHECK(warp_window >= 0, f, ": warp_window must be >= 0 (got ", warp_window, ")");
+  DS3D_CHECK(std::isfinite(warp_chi2) && warp_chi2 > 0, f, ": warp_chi2 must be > 0 (got ",
+             warp_chi2, ")");
+  DS3D_CHECK(std::isfinite(min_warp_area) && min_warp_area > 0, f,
+             ": min_warp_area must be > 0 (got ", min_warp_area, ")");
+  DS3D_CHECK(std::isfinite(image_scale) && image_scale > 0 && image_scale <= 1, f,
+             ": image_scale must be in (0, 1] (got ", image_scale, ")");
   DS3D_CHECK(std::isfinite(max_depth) && max_depth > 0, f, ": max_depth must be > 0 (got ",
              max_depth, ")");
   DS3D_CHECK(min_cluster_size >= 2, f, ": min_cluster_size must be >= 2 (got ", min_cluster_size,
@@ -97,12 +107,95 @@ double median_of(std::vector<double> v) {
   return *mid;
 }
 
+// The camera of an image resized to (w, h): intrinsics scaled about the pixel-centre convention;
+// distortion is in normalised coordinates and does not change.
+PinholeCamera resized_camera(const PinholeCamera& c, int w, int h) {
+  PinholeCamera o = c;
+  const double sx = static_cast<double>(w) / c.width;
+  const double sy = static_cast<double>(h) / c.height;
+  o.fx = c.fx * sx;
+  o.fy = c.fy * sy;
+  o.cx = (c.cx + 0.5) * sx - 0.5;
+  o.cy = (c.cy + 0.5) * sy - 0.5;
+  o.width = w;
+  o.height = h;
+  return o;
+}
+
+bool same_camera(const PinholeCamera& a, const PinholeCamera& b) {
+  return a.fx == b.fx && a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.width == b.width &&
+         a.height == b.height && a.k1 == b.k1 && a.k2 == b.k2 && a.p1 == b.p1 && a.p2 == b.p2 &&
+         a.k3 == b.k3;
+}
+
+// Mutual best matches of two sets of 256-bit ORB descriptors (rows of CV_8UC1, 32 bytes) that
+// pass Lowe's ratio test (Lowe 2004, §7.1), by one brute-force pass over all pairs that keeps the
+// best and second best per row of `a` and the best per row of `b`. Same result as
+// BFMatcher::knnMatch(a, b, 2) + BFMatcher::match(b, a) with the lowest index winning ties, at a
+// fraction of the cost (hardware popcount, no per-call allocations of OpenCV's batch distance).
+std::vector<cv::DMatch> mutual_ratio_matches(const cv::Mat& a, const cv::Mat& b, float ratio) {
+  std::vector<cv::DMatch> out;
+  if (a.rows == 0 || b.rows < 2 || a.cols != 32 || b.cols != 32) return out;
+  const auto pack = [](const cv::Mat& m) {
+    std::vector<std::array<std::uint64_t, 4>> v(static_cast<std::size_t>(m.rows));
+    for (int r = 0; r < m.rows; ++r) std::memcpy(v[static_cast<std::size_t>(r)].data(), m.ptr(r), 32);
+    return v;
+  };
+  const auto pa = pack(a);
+  const auto pb = pack(b);
+  const int na = a.rows;
+  const int nb = b.rows;
+  std::vector<int> best_of_b(static_cast<std::size_t>(nb), std::numeric_limits<int>::max());
+  std::vector<int> best_idx_b(static_cast<std::size_t>(nb), -1);
+  std::vector<std::array<int, 3>> best_of_a(static_cast<std::size_t>(na));  // d1, d2, index
+  for (int i = 0; i < na; ++i) {
+    const auto& x = pa[static_cast<std::size_t>(i)];
+    int d1 = std::numeric_limits<int>::max();
+    int d2 = d1;
+    int j1 = -1;
+    for (int j = 0; j < nb; ++j) {
+      const auto& y = pb[static_cast<std::size_t>(j)];
+      const int d = std::popcount(x[0] ^ y[0]) + std::popcount(x[1] ^ y[1]) +
+                    std::popcount(x[2] ^ y[2]) + std::popcount(x[3] ^ y[3]);
+      if (d < d1) {
+        d2 = d1;
+        d1 = d;
+        j1 = j;
+      } else if (d < d2) {
+        d2 = d;
+      }
+      if (d < best_of_b[static_cast<std::size_t>(j)]) {
+        best_of_b[static_cast<std::size_t>(j)] = d;
+        best_idx_b[static_cast<std::size_t>(j)] = i;
+      }
+    }
+    best_of_a[static_cast<std::size_t>(i)] = {d1, d2, j1};
+  }
+  for (int i = 0; i < na; ++i) {
+    const auto [d1, d2, j1] = best_of_a[static_cast<std::size_t>(i)];
+    if (j1 < 0 || !(static_cast<float>(d1) < ratio * static_cast<float>(d2))) continue;
+    if (best_idx_b[static_cast<std::size_t>(j1)] != i) continue;
+    out.emplace_back(i, j1, static_cast<float>(d1));
+  }
+  return out;
+}
+
 struct Box3 {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   void add(const Eigen::Vector3d& p) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
+  }
+  void add(const Box3& b) {
+    lo = lo.cwiseMin(b.lo);
+    hi = hi.cwiseMax(b.hi);
+  }
+  [[nodiscard]] bool empty() const { return !(hi.x() >= lo.x()); }
+  [[nodiscard]] Eigen::Vector3d size() const { return hi - lo; }
+  [[nodiscard]] bool overlaps(const Box3& b, double margin) const {
+    return (lo.array() - margin <= b.hi.array()).all() &&
+           (b.lo.array() - margin <= hi.array()).all();
   }
 };
 
@@ -115,25 +208,44 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   stats_ = {};
   const std::size_t now = frame_count_++;
   DynamicObjects out;
+  tested_.clear();
+  moving_pixels_.clear();
   if (frame.depth.empty() || frame.depth.type() != CV_16UC1 || frame.rgb.empty()) return out;
   if (frame.depth.cols != camera.width || frame.depth.rows != camera.height) return out;
 
+  // The source's own ORB runs on a reduced image (its camera `cs`); the dense warp and the
+  // reported boxes use the full-resolution depth and `camera`.
+  const int sw = std::max(1, static_cast<int>(std::lround(camera.width * params_.image_scale)));
+  const int sh = std::max(1, static_cast<int>(std::lround(camera.height * params_.image_scale)));
+  const PinholeCamera cs = resized_camera(camera, sw, sh);
+  const double kx = static_cast<double>(camera.width) / sw;  // small → full pixel scale
+  const double ky = static_cast<double>(camera.height) / sh;
   Past cur;
-  cur.features = extractor_.extract(frame.rgb, frame.depth, camera);
-  cur.depth = frame.depth;  // shared, never written
+  if (sw == camera.width && sh == camera.height) {
+    cur.depth_small = frame.depth;  // shared, never written
+    cur.features = extractor_.extract(frame.rgb, frame.depth, cs);
+  } else {
+    cv::Mat rgb_small;
+    cv::resize(frame.rgb, rgb_small, cv::Size(sw, sh), 0, 0, cv::INTER_AREA);
+    cv::resize(frame.depth, cur.depth_small, cv::Size(sw, sh), 0, 0, cv::INTER_NEAREST);
+    cur.features = extractor_.extract(rgb_small, cur.depth_small, cs);
+  }
   {
-    cv::Mat d = frame.depth.clone();
-    d.setTo(65535, d == 0);
+    // Windowed min (0 wherever a pixel of the window lacks depth) and max: depth edges and holes.
     const int k = 2 * params_.warp_window + 1;
-    cv::erode(d, cur.min_depth, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k)));
+    const cv::Mat se = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
+    cv::erode(frame.depth, cur.win_min, se);
+    cv::dilate(frame.depth, cur.win_max, se);
   }
 
   // Reference: the oldest remembered frame whose world pose is chained from trusted poses. With
   // none (a long run of untrusted poses), the world frame of held objects is lost: restart.
   const Past* ref = nullptr;
-  for (const Past& p : history_) {
-    if (p.pose_valid) {
-      ref = &p;
+  const std::size_t first_ref =
+      history_.size() - std::min(history_.size(), static_cast<std::size_t>(params_.reference_gap));
+  for (std::size_t h = first_ref; h < history_.size(); ++h) {
+    if (history_[h].pose_valid) {
+      ref = &history_[h];
       break;
     }
   }
@@ -145,8 +257,9 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   cur.T_world_cam = ref != nullptr ? ref->T_world_cam : Eigen::Isometry3d::Identity();
   cur.pose_valid = history_.empty();  // the first frame defines the world frame
 
+  const auto sigma0 = [&](double z) { return params_.depth_noise * z * z; };
   const auto sigma_z = [&](double z, double spread) {
-    const double s = params_.depth_noise * z * z;
+    const double s = sigma0(z);
     return std::max<double>(params_.min_depth_residual / 3.0,
                             std::sqrt(s * s + 0.25 * spread * spread));
   };
@@ -154,16 +267,14 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   // Largest depth spread of a continuous surface in the keypoint window: that of the noise, or of
   // min_depth_residual (a slanted surface), whichever is larger.
   const auto edge_thr = [&](double z) {
-    return std::max<double>(params_.min_depth_residual,
-                            3.0 * std::sqrt(2.0) * params_.depth_noise * z * z);
+    return std::max<double>(params_.min_depth_residual, 3.0 * std::sqrt(2.0) * sigma0(z));
   };
   struct Tested {
-    Eigen::Vector3d uvz;  // raw pixel and current depth
+    Eigen::Vector3d uvz;  // raw pixel (full resolution) and current depth
     bool moving = false;
     double chi2 = 0;
   };
   std::vector<Tested> tested;
-  tested_.clear();
   Eigen::Isometry3d T_cur_ref = Eigen::Isometry3d::Identity();
   double pixel_sigma = params_.min_pixel_sigma;
   if (ref != nullptr) {
@@ -174,23 +285,11 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
         return (p_world.array() >= lo.array()).all() && (p_world.array() <= hi.array()).all();
       });
     };
-    // 1. Mutual best matches with the reference.
-    // Mutual best matches that also pass Lowe's ratio test (Lowe 2004, §7.1): repeated texture
+    // 1. Mutual best matches that also pass Lowe's ratio test (Lowe 2004, §7.1): repeated texture
     // (keyboards, tiles) gives ambiguous descriptors whose mismatches share one wrong offset and
     // would form a dense "moving" cluster on static structure.
-    std::vector<cv::DMatch> matches;
-    if (!cur.features.descriptors.empty() && ref->features.descriptors.rows >= 2) {
-      cv::BFMatcher matcher(cv::NORM_HAMMING, false);
-      std::vector<std::vector<cv::DMatch>> knn;
-      std::vector<cv::DMatch> back;
-      matcher.knnMatch(cur.features.descriptors, ref->features.descriptors, knn, 2);
-      matcher.match(ref->features.descriptors, cur.features.descriptors, back);
-      for (const auto& k : knn) {
-        if (k.size() < 2 || k[0].distance >= params_.match_ratio * k[1].distance) continue;
-        if (back[static_cast<std::size_t>(k[0].trainIdx)].trainIdx != k[0].queryIdx) continue;
-        matches.push_back(k[0]);
-      }
-    }
+    const std::vector<cv::DMatch> matches = mutual_ratio_matches(
+        cur.features.descriptors, ref->features.descriptors, params_.match_ratio);
     std::vector<std::pair<std::size_t, std::size_t>> pairs;  // (current, reference)
     std::vector<cv::Point3f> obj;
     std::vector<cv::Point2f> img;
@@ -201,7 +300,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
       const auto c = static_cast<std::size_t>(m.queryIdx);
       const auto r = static_cast<std::size_t>(m.trainIdx);
       if (!ref->features.has_depth(r)) continue;
-      const Eigen::Vector3d p = ref->features.depth[r] * ray(camera, ref->features.undistorted[r]);
+      const Eigen::Vector3d p = ref->features.depth[r] * ray(cs, ref->features.undistorted[r]);
       const cv::Point3f pf(static_cast<float>(p.x()), static_cast<float>(p.y()),
                            static_cast<float>(p.z()));
       const cv::Point2f uc(cur.features.undistorted[c].x(), cur.features.undistorted[c].y());
@@ -219,9 +318,10 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
       obj = obj_all;
       img = img_all;
     }
-    // 2. Robust pose T_cur_ref (EPnP-RANSAC, then Levenberg-Marquardt on the inliers).
+    // 2. Robust pose T_cur_ref (EPnP-RANSAC, then Levenberg-Marquardt on the inliers). The
+    //    inlier threshold is in pixels of the reduced image.
     if (static_cast<int>(obj.size()) >= params_.min_pose_inliers) {
-      const cv::Matx33d K(camera.fx, 0, camera.cx, 0, camera.fy, camera.cy, 0, 0, 1);
+      const cv::Matx33d K(cs.fx, 0, cs.cx, 0, cs.fy, cs.cy, 0, 0, 1);
       cv::Mat rvec;
       cv::Mat tvec;
       std::vector<int> inliers;
@@ -261,11 +361,10 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
       std::vector<double> e;
       for (const auto& [c, r] : pairs) {
         const Eigen::Vector3d q =
-            T_cur_ref * (ref->features.depth[r] * ray(camera, ref->features.undistorted[r]));
+            T_cur_ref * (ref->features.depth[r] * ray(cs, ref->features.undistorted[r]));
         if (q.z() <= 0.0) continue;
-        const Eigen::Vector2d du(
-            camera.fx * q.x() / q.z() + camera.cx - cur.features.undistorted[c].x(),
-            camera.fy * q.y() / q.z() + camera.cy - cur.features.undistorted[c].y());
+        const Eigen::Vector2d du(cs.fx * q.x() / q.z() + cs.cx - cur.features.undistorted[c].x(),
+                                 cs.fy * q.y() / q.z() + cs.cy - cur.features.undistorted[c].y());
         e.push_back(du.norm() / extractor_.level_scale(cur.features.keypoints[c].octave));
       }
       pixel_sigma =
@@ -277,16 +376,16 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
         const double zr = ref->features.depth[r];
         const double zc = cur.features.depth[c];
         if (zr > params_.max_depth || zc > params_.max_depth) continue;
-        const Eigen::Vector3d d = ray(camera, ref->features.undistorted[r]);
+        const Eigen::Vector3d d = ray(cs, ref->features.undistorted[r]);
         const Eigen::Vector3d q = T_cur_ref * (zr * d);
         if (q.z() <= 0.1) continue;
         const Eigen::Vector2f& uc = cur.features.undistorted[c];
-        const Eigen::Vector3d res(uc.x() - (camera.fx * q.x() / q.z() + camera.cx),
-                                  uc.y() - (camera.fy * q.y() / q.z() + camera.cy), zc - q.z());
+        const Eigen::Vector3d res(uc.x() - (cs.fx * q.x() / q.z() + cs.cx),
+                                  uc.y() - (cs.fy * q.y() / q.z() + cs.cy), zc - q.z());
         // Jacobian of the prediction (u, v, z) with respect to the reference depth.
         const Eigen::Vector3d dq = R * d;
-        const Eigen::Vector3d g(camera.fx * (dq.x() * q.z() - q.x() * dq.z()) / (q.z() * q.z()),
-                                camera.fy * (dq.y() * q.z() - q.y() * dq.z()) / (q.z() * q.z()),
+        const Eigen::Vector3d g(cs.fx * (dq.x() * q.z() - q.x() * dq.z()) / (q.z() * q.z()),
+                                cs.fy * (dq.y() * q.z() - q.y() * dq.z()) / (q.z() * q.z()),
                                 dq.z());
         const cv::Point2f& pc = cur.features.keypoints[c].pt;
         const cv::Point2f& pr = ref->features.keypoints[r].pt;
@@ -294,9 +393,9 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
         // fixed 3-D points: the corner slides along the occluding contour as the view changes,
         // and RGB-depth misregistration gives them either depth. They are no evidence either way.
         const double spr =
-            depth_spread(ref->depth, camera.depth_scale, pr.x, pr.y, params_.depth_window);
+            depth_spread(ref->depth_small, cs.depth_scale, pr.x, pr.y, params_.depth_window);
         const double spc =
-            depth_spread(frame.depth, camera.depth_scale, pc.x, pc.y, params_.depth_window);
+            depth_spread(cur.depth_small, cs.depth_scale, pc.x, pc.y, params_.depth_window);
         if (spr > edge_thr(zr) || spc > edge_thr(zc)) continue;
         const double szr = sigma_z(zr, spr);
         const double szc = sigma_z(zc, spc);
@@ -307,7 +406,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
         S += g * g.transpose() * (szr * szr);
         const double chi2 = res.dot(S.ldlt().solve(res));
         Tested t;
-        t.uvz = Eigen::Vector3d(pc.x, pc.y, zc);
+        t.uvz = Eigen::Vector3d((pc.x + 0.5) * kx - 0.5, (pc.y + 0.5) * ky - 0.5, zc);
         t.moving = std::isfinite(chi2) && chi2 > params_.moving_chi2;
         t.chi2 = std::isfinite(chi2) ? chi2 : 0.0;
         stats_.num_moving_keypoints += t.moving ? 1 : 0;
@@ -321,9 +420,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   // 4. Candidates: HDBSCAN of the moving keypoints in (u, v, z), metric scales; compactness and
   //    support tests.
   struct Candidate {
-    Box3 box;         // camera frame, of the evidence
-    cv::Rect2d rect;  // image rectangle of the moving keypoints
-    double z_lo = 0, z_hi = 0;
+    Box3 box;  // camera frame, of the evidence
   };
   std::vector<Candidate> found;
   std::vector<Eigen::Vector3d> moving;
@@ -341,6 +438,11 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
     moving.push_back(t.uvz);
     moving_idx.push_back(i);
   }
+  // The warp grid (full resolution, stride s, first pixel s/2): cell c ↔ pixel (u, v).
+  const int s = params_.warp_stride;
+  const int off = s / 2;
+  const int gw = camera.width > off ? (camera.width - 1 - off) / s + 1 : 0;
+  const int gh = camera.height > off ? (camera.height - 1 - off) / s + 1 : 0;
   if (static_cast<int>(moving.size()) >= params_.min_cluster_size) {
     RowMatrixXd pts(static_cast<Eigen::Index>(moving.size()), 3);
     std::vector<double> zs;
@@ -366,7 +468,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
         z0 = std::min(z0, m.z()), z1 = std::max(z1, m.z());
       }
       // Human-scale objects only: larger clusters are static structure under a wrong pose.
-      if ((cand.box.hi - cand.box.lo).maxCoeff() > params_.max_object_size) continue;
+      if (cand.box.size().maxCoeff() > params_.max_object_size) continue;
       // Support: a moving object moves as a whole, so most tested keypoints in its region move;
       // false alarms on static structure are scattered among consistent keypoints.
       const double dz = 3.0 * sigma_z(z1, 0.0);
@@ -382,81 +484,209 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
       for (std::size_t i = 0; i < moving.size(); ++i) {
         if (h.labels[i] == cl) tested_[moving_idx[i]].candidate = true;
       }
-      cand.rect = cv::Rect2d(u0, v0, u1 - u0, v1 - v0);
-      cand.z_lo = z0 - dz;
-      cand.z_hi = z1 + dz;
-      found.push_back(cand);
+      found.push_back(std::move(cand));
+    }
+  }
+
+  // 5. Dense depth warp into the reference. Cell states: 0 no usable depth (missing, beyond
+  //    max_depth, or on a depth edge), 1 usable, 2 also tested against the reference, 3 moved in.
+  std::vector<std::uint8_t> state;
+  std::vector<float> cz;
+  std::vector<Eigen::Vector3f> cp;  // camera-frame point of each usable cell
+  if (stats_.pose_ok && gw > 0 && gh > 0) {
+    const std::size_t nc = static_cast<std::size_t>(gw) * static_cast<std::size_t>(gh);
+    if (grid_rays_.size() != nc || !same_camera(grid_camera_, camera) ||
+        grid_stride_ != s) {
+      grid_rays_.resize(nc);
+      for (int j = 0; j < gh; ++j) {
+        for (int i = 0; i < gw; ++i) {
+          const Eigen::Vector3d r = camera.back_project(off + i * s, off + j * s, 1.0);
+          grid_rays_[static_cast<std::size_t>(j * gw + i)] = r.head<2>();
+        }
+      }
+      grid_camera_ = camera;
+      grid_stride_ = s;
+    }
+    state.assign(nc, 0);
+    cz.assign(nc, 0.0F);
+    cp.assign(nc, Eigen::Vector3f::Zero());
+    // The warp's reference: the oldest remembered frame with a chained pose (warp_gap frames
+    // back): a longer baseline than the pose's turns a walker's motion into a band of flagged
+    // pixels as wide as its displacement, not a sliver at its leading edge.
+    const Past* wref = ref;
+    for (const Past& p : history_) {
+      if (p.pose_valid) {
+        wref = &p;
+        break;
+      }
+    }
+    const Eigen::Isometry3d T_ref_cur = wref->T_world_cam.inverse() * cur.T_world_cam;
+    // Lateral uncertainty of the warp [full-resolution px]: the pose's σ_px per chained pose
+    // step (a random walk over the steps back to the warp reference). On a slanted surface it
+    // becomes a depth uncertainty of slope × σ_lat, the slope taken from the window's spread.
+    std::size_t wref_age = 0;
+    for (std::size_t h = 0; h < history_.size(); ++h) {
+      if (&history_[h] == wref) wref_age = history_.size() - h;
+    }
+    const double steps = std::max(
+        1.0, std::ceil(static_cast<double>(wref_age) / static_cast<double>(params_.reference_gap)));
+    const double sigma_lat = pixel_sigma * std::max(kx, ky) * std::sqrt(steps);
+    const double per_px = 1.0 / std::max(1, 2 * params_.warp_window);
+    const double k_sigma = std::sqrt(params_.warp_chi2);
+    const double ds = camera.depth_scale;
+    for (int j = 0; j < gh; ++j) {
+      const int v = off + j * s;
+      const auto* drow = frame.depth.ptr<std::uint16_t>(v);
+      const auto* mnrow = cur.win_min.ptr<std::uint16_t>(v);
+      const auto* mxrow = cur.win_max.ptr<std::uint16_t>(v);
+      for (int i = 0; i < gw; ++i) {
+        const int u = off + i * s;
+        if (drow[u] == 0 || mnrow[u] == 0) continue;
+        const double z = drow[u] / ds;
+        if (z > params_.max_depth || (mxrow[u] - mnrow[u]) / ds > edge_thr(z)) continue;
+        const std::size_t c = static_cast<std::size_t>(j * gw + i);
+        const Eigen::Vector2d& r = grid_rays_[c];
+        const Eigen::Vector3d p(r.x() * z, r.y() * z, z);
+        state[c] = 1;
+        cz[c] = static_cast<float>(z);
+        cp[c] = p.cast<float>();
+        const Eigen::Vector3d q = T_ref_cur * p;
+        if (q.z() < 0.1) continue;
+        const Eigen::Vector2d uv = camera.project(q);
+        const auto qu = static_cast<int>(std::lround(uv.x()));
+        const auto qv = static_cast<int>(std::lround(uv.y()));
+        if (qu < 0 || qv < 0 || qu >= camera.width || qv >= camera.height) continue;
+        const std::uint16_t rmn = wref->win_min.at<std::uint16_t>(qv, qu);
+        if (rmn == 0) continue;  // missing reference depth in the window: unknown
+        const double zr = rmn / ds;
+        if ((wref->win_max.at<std::uint16_t>(qv, qu) - rmn) / ds > edge_thr(zr)) continue;
+        state[c] = 2;
+        ++stats_.num_warp_tested;
+        // In front of every surface the reference saw around there: the space was empty.
+        const double slope =
+            per_px * std::max<double>(wref->win_max.at<std::uint16_t>(qv, qu) - rmn,
+                                      mxrow[u] - mnrow[u]) / ds;
+        const double sig = std::sqrt(sigma0(q.z()) * sigma0(q.z()) + sigma0(zr) * sigma0(zr) +
+                                     (slope * sigma_lat) * (slope * sigma_lat));
+        if (zr - q.z() > std::max<double>(params_.min_depth_residual, k_sigma * sig)) {
+          state[c] = 3;
+          ++stats_.num_moving_pixels;
+          moving_pixels_.emplace_back(static_cast<float>(u), static_cast<float>(v));
+        }
+      }
+    }
+    // Depth-continuous connected components (8-neighbourhood) of the moved-in cells.
+    const auto continuous = [&](std::size_t a, std::size_t b) {
+      return std::abs(cz[a] - cz[b]) <= edge_thr(std::max(cz[a], cz[b]));
+    };
+    std::vector<int> comp(nc, -1);
+    std::vector<std::size_t> stack;
+    int num_comp = 0;
+    for (std::size_t c0 = 0; c0 < nc; ++c0) {
+      if (state[c0] != 3 || comp[c0] >= 0) continue;
+      Candidate cand;
+      double area = 0;
+      int i0 = gw, i1 = -1, j0 = gh, j1 = -1;
+      double z0 = 1e30, z1 = -1e30;
+      comp[c0] = num_comp;
+      stack.assign(1, c0);
+      while (!stack.empty()) {
+        const std::size_t c = stack.back();
+        stack.pop_back();
+        const int i = static_cast<int>(c) % gw;
+        const int j = static_cast<int>(c) / gw;
+        cand.box.add(cp[c].cast<double>());
+        const double z = cz[c];
+        area += (s * z / camera.fx) * (s * z / camera.fy);
+        i0 = std::min(i0, i), i1 = std::max(i1, i), j0 = std::min(j0, j), j1 = std::max(j1, j);
+        z0 = std::min(z0, z), z1 = std::max(z1, z);
+        // Neighbours up to two cells away: flagged bands are broken by edge and hole cells.
+        for (int dj = -2; dj <= 2; ++dj) {
+          for (int di = -2; di <= 2; ++di) {
+            const int ii = i + di;
+            const int jj = j + dj;
+            if (ii < 0 || jj < 0 || ii >= gw || jj >= gh) continue;
+            const auto n = static_cast<std::size_t>(jj * gw + ii);
+            if (state[n] != 3 || comp[n] >= 0 || !continuous(c, n)) continue;
+            comp[n] = num_comp;
+            stack.push_back(n);
+          }
+        }
+      }
+      ++num_comp;
+      if (area < params_.min_warp_area) continue;
+      if (cand.box.size().maxCoeff() > params_.max_object_size) continue;
+      // Support, as for keypoints: most tested cells in its rectangle and depth range moved in.
+      // Pose or registration errors flag scattered cells along static edges, a mover a block.
+      const double dz = 3.0 * sigma_z(z1, 0.0);
+      int in_region = 0;
+      int moved = 0;
+      for (int j = j0; j <= j1; ++j) {
+        for (int i = i0; i <= i1; ++i) {
+          const auto c = static_cast<std::size_t>(j * gw + i);
+          if (state[c] < 2 || cz[c] < z0 - dz || cz[c] > z1 + dz) continue;
+          ++in_region;
+          moved += state[c] == 3 ? 1 : 0;
+        }
+      }
+      if (moved < params_.min_support * in_region) continue;
+      ++stats_.num_warp_candidates;
+      found.push_back(std::move(cand));
+    }
+  }
+
+  // Keypoint and warp evidence of one object: merge candidates whose boxes touch (within
+  // box_margin) while the union stays object-sized.
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (std::size_t a = 0; a < found.size() && !merged; ++a) {
+      for (std::size_t b = a + 1; b < found.size() && !merged; ++b) {
+        if (!found[a].box.overlaps(found[b].box, params_.box_margin)) continue;
+        Box3 u = found[a].box;
+        u.add(found[b].box);
+        if (u.size().maxCoeff() > params_.max_object_size) continue;
+        found[a].box = u;
+        found.erase(found.begin() + static_cast<std::ptrdiff_t>(b));
+        merged = true;
+      }
     }
   }
   stats_.num_candidates = static_cast<int>(found.size());
 
-  // 5. Depth-warp check around the candidates: grid pixels in front of everything the reference
-  //    saw in a window extend the object (it moved into empty space).
-  if (!found.empty() && ref != nullptr) {
-    const Eigen::Isometry3d T_ref_cur = T_cur_ref.inverse();
-    const int s = params_.warp_stride;
-    for (Candidate& cand : found) {
-      // The region a moving object may occupy beyond its keypoints: half its size on each side.
-      const cv::Rect2d grown(cand.rect.x - 0.5 * cand.rect.width,
-                             cand.rect.y - 0.5 * cand.rect.height, 2.0 * cand.rect.width,
-                             2.0 * cand.rect.height);
-      const int v_lo = std::max(0, static_cast<int>(grown.y));
-      const int v_hi = std::min(frame.depth.rows - 1, static_cast<int>(grown.y + grown.height));
-      const int u_lo = std::max(0, static_cast<int>(grown.x));
-      const int u_hi = std::min(frame.depth.cols - 1, static_cast<int>(grown.x + grown.width));
-      for (int v = v_lo - v_lo % s + s / 2; v <= v_hi; v += s) {
-        const auto* row = frame.depth.ptr<std::uint16_t>(v);
-        for (int u = u_lo - u_lo % s + s / 2; u <= u_hi; u += s) {
-          if (row[u] == 0) continue;
-          const double z = row[u] / camera.depth_scale;
-          if (z < cand.z_lo || z > cand.z_hi) continue;
-          const Eigen::Vector3d pc = camera.back_project(u, v, z);
-          const Eigen::Vector3d pr = T_ref_cur * pc;
-          if (pr.z() < 0.1) continue;
-          const Eigen::Vector2d q = camera.project(pr);
-          const auto qu = static_cast<int>(std::lround(q.x()));
-          const auto qv = static_cast<int>(std::lround(q.y()));
-          if (qu < 0 || qv < 0 || qu >= ref->min_depth.cols || qv >= ref->min_depth.rows) continue;
-          const std::uint16_t m = ref->min_depth.at<std::uint16_t>(qv, qu);
-          if (m == 65535) continue;  // no reference depth anywhere in the window: unknown
-          const double zr = m / camera.depth_scale;
-          if (zr - pr.z() > 3.0 * std::sqrt(2.0) * sigma_z(pr.z(), 0.0)) {
-            cand.box.add(pc);
-            ++stats_.num_moving_pixels;
-          }
-        }
-      }
-    }
-  }
-
   // 6. Confirmation over consecutive frames, and holding in the world frame.
-  std::vector<Held> candidates_now;
-  for (const Candidate& cand : found) {
-    if ((cand.box.hi - cand.box.lo).maxCoeff() > params_.max_object_size) continue;
-    const Eigen::Vector3d lo = cand.box.lo.array() - params_.box_margin;
-    const Eigen::Vector3d hi = cand.box.hi.array() + params_.box_margin;
-    Held obj;
+  const auto world_box = [&](const Box3& b, Eigen::Matrix<double, 8, 3>* corners) {
+    const Eigen::Vector3d lo = b.lo.array() - params_.box_margin;
+    const Eigen::Vector3d hi = b.hi.array() + params_.box_margin;
+    Box3 w;
     for (int k = 0; k < 8; ++k) {
       const Eigen::Vector3d corner((k & 1) != 0 ? hi.x() : lo.x(), (k & 2) != 0 ? hi.y() : lo.y(),
                                    (k & 4) != 0 ? hi.z() : lo.z());
-      obj.corners_world.row(k) = (cur.T_world_cam * corner).transpose();
+      const Eigen::Vector3d p = cur.T_world_cam * corner;
+      if (corners != nullptr) corners->row(k) = p.transpose();
+      w.add(p);
     }
-    obj.centre_world = cur.T_world_cam * (0.5 * (lo + hi));
+    return w;
+  };
+  std::vector<Held> candidates_now;
+  for (const Candidate& cand : found) {
+    Held obj;
+    const Box3 ev = world_box(cand.box, &obj.corners_world);
+    obj.lo_world = ev.lo;
+    obj.hi_world = ev.hi;
     obj.last_seen = now;
-    const Eigen::Vector3d wlo = obj.corners_world.colwise().minCoeff().transpose();
-    const Eigen::Vector3d whi = obj.corners_world.colwise().maxCoeff().transpose();
-    const auto overlaps = [&](const Held& x) {
-      const Eigen::Vector3d xlo = x.corners_world.colwise().minCoeff().transpose();
-      const Eigen::Vector3d xhi = x.corners_world.colwise().maxCoeff().transpose();
-      return (xlo.array() <= whi.array()).all() && (wlo.array() <= xhi.array()).all();
+    const auto confirms = [&](const Held& x) {
+      Box3 xe;
+      xe.lo = x.lo_world;
+      xe.hi = x.hi_world;
+      return ev.overlaps(xe, 0.0);
     };
     candidates_now.push_back(obj);
-    if (std::none_of(candidates_.begin(), candidates_.end(), overlaps) &&
-        std::none_of(held_.begin(), held_.end(), overlaps)) {
+    if (std::none_of(candidates_.begin(), candidates_.end(), confirms) &&
+        std::none_of(held_.begin(), held_.end(), confirms)) {
       continue;
     }
     // A new sighting replaces the held objects it overlaps: the object moved there.
-    std::erase_if(held_, overlaps);
+    std::erase_if(held_, [&](const Held& x) { return x.last_seen != now && confirms(x); });
     held_.push_back(obj);
     ++stats_.num_new_objects;
   }
@@ -480,7 +710,9 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   stats_.num_objects = static_cast<int>(out.boxes_3d.size());
 
   history_.push_back(std::move(cur));
-  while (static_cast<int>(history_.size()) > params_.reference_gap) history_.pop_front();
+  while (static_cast<int>(history_.size()) > std::max(params_.reference_gap, params_.warp_gap)) {
+    history_.pop_front();
+  }
   return out;
 }
 

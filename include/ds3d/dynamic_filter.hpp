@@ -11,10 +11,11 @@
 ///  2. cluster the valid ones with ds3d::hdbscan on (u, v, z) with per-dimension scales
 ///     {z̃/fx, z̃/fy, 1} (z̃ = median depth in the box): pixels become metres at the object's depth,
 ///     so the clustering is isotropic in metric space whatever the distance or the resolution;
-///  3. clusters are ordered by median depth and chained into depth-continuous groups (next
-///     median within the depth gap plus 3σ of the sensor noise σ(z) = k·z², Khoshelham &
-///     Elberink 2012, and within max_object_depth of the group's first): arms and legs that
-///     HDBSCAN split off join their body. The foreground is the shallowest group spanning a
+///  3. clusters are ordered by nearest depth and chained into depth-continuous groups (a
+///     cluster's depth range touches the group's: its near end within the depth gap plus 3σ of
+///     the sensor noise σ(z) = k·z², Khoshelham & Elberink 2012, of the group's far end, and its
+///     median within max_object_depth of the group's near end): arms, legs and torso that
+///     HDBSCAN split into several depth groups join their body. The foreground is the shallowest group spanning a
 ///     sizeable part of the box height (a detected object fills its box; furniture occluding
 ///     part of it does not); its clusters are dynamic; everything else in the box (the
 ///     background seen around and through the object, occluders in front of it) is kept;

@@ -245,10 +245,11 @@ TEST(RecordedData, TumWalkingXyzMasks) {
   std::cout << "tum_fr3_walking_xyz_3frames: person keypoints marked dynamic " << on_person_dyn
             << "/" << on_person << " = " << recall << "; others kept " << rest_kept << "/" << rest
             << " = " << kept << "\n";
-  // Measured 0.64 / 0.92 (docs/dynamic.md); these bounds guard against regressions, they are not
-  // the targets.
+  // Measured 0.80 / 0.86 with the depth-range chaining of the filter (0.64 / 0.92 when only the
+  // shallowest depth group was removed; docs/dynamic.md). These bounds guard against
+  // regressions, they are not the targets.
   EXPECT_GT(on_person, 50);
-  EXPECT_GE(recall, 0.5);
+  EXPECT_GE(recall, 0.7);
   EXPECT_GE(kept, 0.85);
 }
 

@@ -273,22 +273,26 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(Eigen::Ref<const Keypoin
         }
         std::vector<float> med(nc);
         for (std::size_t c = 0; c < nc; ++c) med[c] = detail::median_of(cz[c]);
-        // Depth-continuous groups of clusters: in order of median depth, a cluster joins the
-        // current group while its median is within gap + 3σ of the previous one and within
-        // max_object_depth of the group's first. The foreground is the shallowest group that
-        // spans enough of the box height (a detected object fills its box; an occluder in front
-        // of part of it does not); if none does, the shallowest group.
+        // Depth-continuous groups of clusters: in order of nearest depth, a cluster joins the
+        // current group while its depth range [z0, z1] touches the group's (its near end within
+        // gap + 3σ of the group's far end) and its median lies within max_object_depth of the
+        // group's near end. A body that HDBSCAN splits into torso, arms and legs at different
+        // depths is one chain; the background seen around or through it is not (it lies a gap
+        // behind). The foreground is the shallowest group that spans enough of the box height (a
+        // detected object fills its box; an occluder in front of part of it does not); if none
+        // does, the shallowest group.
         std::vector<std::size_t> by_depth(nc);
         std::iota(by_depth.begin(), by_depth.end(), std::size_t{0});
         std::sort(by_depth.begin(), by_depth.end(), [&](std::size_t a, std::size_t b) {
-          return med[a] < med[b] || (med[a] == med[b] && a < b);
+          return cr[a].z0 < cr[b].z0 || (cr[a].z0 == cr[b].z0 && a < b);
         });
         std::vector<std::pair<std::size_t, std::size_t>> groups;  // [begin, end) in by_depth
         for (std::size_t g0 = 0; g0 < nc;) {
           std::size_t g1 = g0 + 1;
-          while (g1 < nc &&
-                 med[by_depth[g1]] - med[by_depth[g1 - 1]] <= gap_at(med[by_depth[g1 - 1]]) &&
-                 med[by_depth[g1]] - med[by_depth[g0]] <= params_.max_object_depth) {
+          float far = cr[by_depth[g0]].z1;
+          while (g1 < nc && cr[by_depth[g1]].z0 - far <= gap_at(far) &&
+                 med[by_depth[g1]] - cr[by_depth[g0]].z0 <= params_.max_object_depth) {
+            far = std::max(far, cr[by_depth[g1]].z1);
             ++g1;
           }
           groups.emplace_back(g0, g1);
