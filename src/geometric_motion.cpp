@@ -128,6 +128,31 @@ bool same_camera(const PinholeCamera& a, const PinholeCamera& b) {
          a.k3 == b.k3;
 }
 
+struct Box3 {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  void add(const Eigen::Vector3d& p) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  void add(const Box3& b) {
+    lo = lo.cwiseMin(b.lo);
+    hi = hi.cwiseMax(b.hi);
+  }
+  [[nodiscard]] bool empty() const { return !(hi.x() >= lo.x()); }
+  [[nodiscard]] Eigen::Vector3d size() const { return hi - lo; }
+  [[nodiscard]] bool overlaps(const Box3& b, double margin) const {
+    return (lo.array() - margin <= b.hi.array()).all() &&
+           (b.lo.array() - margin <= hi.array()).all();
+  }
+};
+
+}  // namespace
+
+}  // namespace ds3d::slam
+
+namespace ds3d::detail {
+
 // Mutual best matches of two sets of 256-bit ORB descriptors (rows of CV_8UC1, 32 bytes) that
 // pass Lowe's ratio test (Lowe 2004, §7.1), by one brute-force pass over all pairs that keeps the
 // best and second best per row of `a` and the best per row of `b`. Same result as
@@ -180,26 +205,9 @@ std::vector<cv::DMatch> mutual_ratio_matches(const cv::Mat& a, const cv::Mat& b,
   return out;
 }
 
-struct Box3 {
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-  Eigen::Vector3d hi = -Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-  void add(const Eigen::Vector3d& p) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  void add(const Box3& b) {
-    lo = lo.cwiseMin(b.lo);
-    hi = hi.cwiseMax(b.hi);
-  }
-  [[nodiscard]] bool empty() const { return !(hi.x() >= lo.x()); }
-  [[nodiscard]] Eigen::Vector3d size() const { return hi - lo; }
-  [[nodiscard]] bool overlaps(const Box3& b, double margin) const {
-    return (lo.array() - margin <= b.hi.array()).all() &&
-           (b.lo.array() - margin <= hi.array()).all();
-  }
-};
+}  // namespace ds3d::detail
 
-}  // namespace
+namespace ds3d::slam {
 
 GeometricMotionSource::GeometricMotionSource(const GeometricMotionParams& params)
     : params_((params.validate(), params)), extractor_(orb_params(params)) {}
@@ -288,7 +296,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
     // 1. Mutual best matches that also pass Lowe's ratio test (Lowe 2004, §7.1): repeated texture
     // (keyboards, tiles) gives ambiguous descriptors whose mismatches share one wrong offset and
     // would form a dense "moving" cluster on static structure.
-    const std::vector<cv::DMatch> matches = mutual_ratio_matches(
+    const std::vector<cv::DMatch> matches = ds3d::detail::mutual_ratio_matches(
         cur.features.descriptors, ref->features.descriptors, params_.match_ratio);
     std::vector<std::pair<std::size_t, std::size_t>> pairs;  // (current, reference)
     std::vector<cv::Point3f> obj;

@@ -181,3 +181,13 @@ class GeometricMotionSource final : public DynamicObjectSource {
 };
 
 }  // namespace ds3d::slam
+
+namespace ds3d::detail {
+// Mutual best matches of two sets of 256-bit ORB descriptors (CV_8UC1 rows of 32 bytes) that pass
+// Lowe's ratio test: d1 < ratio * d2 for the row of `a`, and that row is the best of `b`'s column
+// (lowest index on ties). Equal to cv::BFMatcher(NORM_HAMMING) knnMatch(a, b, 2) + match(b, a).
+// Empty when a has no rows, b fewer than 2, or either is not 32 bytes wide. Used by
+// GeometricMotionSource; exposed for its test.
+std::vector<cv::DMatch> mutual_ratio_matches(const cv::Mat& a, const cv::Mat& b, float ratio);
+}  // namespace ds3d::detail
+

@@ -15,7 +15,10 @@
 #include <functional>
 #include <iostream>
 #include <optional>
+#include <random>
+#include <tuple>
 
+#include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -241,3 +244,55 @@ TEST(RecordedData, GeometricSourceFindsPeopleAndLeavesStaticScenes) {
 }
 
 }  // namespace
+
+// The hand-written popcount matcher must select exactly what OpenCV's brute-force Hamming matcher
+// selects: knnMatch(a, b, 2) + Lowe's ratio + the mutual check with match(b, a). Descriptors: true
+// pairs with a few flipped bits, exact duplicates (repeated texture: d1 == d2, rejected by the
+// ratio test) and random distractors.
+TEST(MutualRatioMatches, EqualsOpenCvBruteForceMatcher) {
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::uniform_int_distribution<int> bit(0, 255);
+  const int na = 300;
+  cv::Mat a(na, 32, CV_8UC1);
+  for (int r = 0; r < na; ++r) {
+    for (int c = 0; c < 32; ++c) a.at<std::uint8_t>(r, c) = static_cast<std::uint8_t>(byte(rng));
+  }
+  for (int r = 1; r < na; r += 25) a.row(r - 1).copyTo(a.row(r));  // repeated texture
+  cv::Mat b(0, 32, CV_8UC1);
+  for (int r = 0; r < na; r += 2) {  // half of a, seen again with noise
+    cv::Mat row = a.row(r).clone();
+    const int flips = r % 12;
+    for (int f = 0; f < flips; ++f) {
+      const int k = bit(rng);
+      row.at<std::uint8_t>(0, k / 8) ^= static_cast<std::uint8_t>(1U << (k % 8));
+    }
+    b.push_back(row);
+  }
+  for (int r = 0; r < 100; ++r) {  // distractors
+    cv::Mat row(1, 32, CV_8UC1);
+    for (int c = 0; c < 32; ++c) row.at<std::uint8_t>(0, c) = static_cast<std::uint8_t>(byte(rng));
+    b.push_back(row);
+  }
+  for (const float ratio : {0.6F, 0.8F, 0.95F}) {
+    cv::BFMatcher bf(cv::NORM_HAMMING);
+    std::vector<std::vector<cv::DMatch>> knn;
+    bf.knnMatch(a, b, knn, 2);
+    std::vector<cv::DMatch> back;
+    bf.match(b, a, back);
+    std::vector<std::tuple<int, int, float>> expected;
+    for (const auto& m : knn) {
+      if (m.size() < 2 || !(m[0].distance < ratio * m[1].distance)) continue;
+      if (back[static_cast<std::size_t>(m[0].trainIdx)].trainIdx != m[0].queryIdx) continue;
+      expected.emplace_back(m[0].queryIdx, m[0].trainIdx, m[0].distance);
+    }
+    std::vector<std::tuple<int, int, float>> got;
+    for (const auto& m : ds3d::detail::mutual_ratio_matches(a, b, ratio)) {
+      got.emplace_back(m.queryIdx, m.trainIdx, m.distance);
+    }
+    EXPECT_EQ(got, expected) << "ratio " << ratio;
+    EXPECT_GT(got.size(), 60U) << "ratio " << ratio;  // the noisy true pairs are found
+  }
+  EXPECT_TRUE(ds3d::detail::mutual_ratio_matches(a, b.rowRange(0, 1), 0.8F).empty());
+  EXPECT_TRUE(ds3d::detail::mutual_ratio_matches(cv::Mat(0, 32, CV_8UC1), b, 0.8F).empty());
+}
