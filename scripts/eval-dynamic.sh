@@ -27,15 +27,19 @@ ate() {  # ate EST GT -> "ATE_RMSE PAIRS" from ds3d-eval (SE(3) alignment, 0.02 
   "$eval_bin" ate "$2" "$1" --json |
     /usr/bin/python3 -c 'import json,sys; r=json.load(sys.stdin); print("%.4f %d" % (r["rmse"], r["compared_pose_pairs"]))'
 }
+# One table row: row LABEL DATASET_DIR DYNAMIC OUT_STEM (runs ds3d-slam, scores it, reads its stats).
+row() {
+  local label=$1 dir=$2 dyn=$3 stem=$4 rmse n fps
+  "$build/bin/ds3d-slam" "$dir" --dynamic "$dyn" --out "$stem.txt" --stats "$stem.json" --quiet
+  read -r rmse n < <(ate "$stem.txt" "$dir/groundtruth.txt")
+  fps=$(/usr/bin/python3 -c "import json,sys; s=json.load(open(sys.argv[1])); print(f\"{s['tracked_frames']}/{s['frames']} {s['fps_median']:.1f} {s['stages']['detect']['median_ms']:.2f} {s['stages']['filter']['median_ms']:.2f}\")" "$stem.json")
+  printf "| %s | %s | %s | %s | %s | %s | %s | %s |\n" "$label" "$dyn" "$rmse" "$n" ${fps}
+}
 printf "| sequence | --dynamic | ATE RMSE [m] | pairs | tracked | fps median | detect median [ms] | filter median [ms] |\n|---|---|---|---|---|---|---|---|\n"
 for seq in bonn_crowd_first300 tum_fr1_xyz_first400; do
   [[ -d "$data/$seq" ]] || { echo "| $seq | (absent) | | | | | | |"; continue; }
   for dyn in none geometric; do
-    "$build/bin/ds3d-slam" "$data/$seq" --dynamic "$dyn" --out "$out/${seq}_${dyn}.txt" \
-      --stats "$out/${seq}_${dyn}.json" --quiet
-    read -r rmse n < <(ate "$out/${seq}_${dyn}.txt" "$data/$seq/groundtruth.txt")
-    fps=$(/usr/bin/python3 -c "import json,sys; s=json.load(open(sys.argv[1])); print(f\"{s['tracked_frames']}/{s['frames']} {s['fps_median']:.1f} {s['stages']['detect']['median_ms']:.2f} {s['stages']['filter']['median_ms']:.2f}\")" "$out/${seq}_${dyn}.json")
-    printf "| %s | %s | %s | %s | %s | %s | %s | %s |\n" "$seq" "$dyn" "$rmse" "$n" ${fps}
+    row "$seq" "$data/$seq" "$dyn" "$out/${seq}_${dyn}"
   done
 done
 if [[ "$synth" == 1 ]]; then
@@ -44,11 +48,7 @@ if [[ "$synth" == 1 ]]; then
   for sc in walking_xyz walking_static walking_halfsphere walking_rpy sitting_static sitting_xyz; do
     "$build/bin/ds3d-synth" "$out/synth_$sc" --scenario "$sc" --frames 240 --seed 1 >/dev/null
     for dyn in none geometric; do
-      "$build/bin/ds3d-slam" "$out/synth_$sc" --dynamic "$dyn" --out "$out/synth_${sc}_${dyn}.txt" \
-        --stats "$out/synth_${sc}_${dyn}.json" --quiet
-      read -r rmse n < <(ate "$out/synth_${sc}_${dyn}.txt" "$out/synth_$sc/groundtruth.txt")
-      fps=$(/usr/bin/python3 -c "import json,sys; s=json.load(open(sys.argv[1])); print(f\"{s['tracked_frames']}/{s['frames']} {s['fps_median']:.1f} {s['stages']['detect']['median_ms']:.2f} {s['stages']['filter']['median_ms']:.2f}\")" "$out/synth_${sc}_${dyn}.json")
-      printf "| %s | %s | %s | %s | %s | %s | %s | %s |\n" "$sc" "$dyn" "$rmse" "$n" ${fps}
+      row "$sc" "$out/synth_$sc" "$dyn" "$out/synth_${sc}_${dyn}"
     done
   done
 fi
