@@ -254,8 +254,9 @@ void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads
     a[2] *= inv_cnt;
   }
   // Pass 4: representatives: the first member (input order) nearest the mean. Distances are
-  // >= 0, so their bit patterns order like the values: integer compare and conditional moves,
-  // no branch on the unpredictable "is it nearer" (measured ~10 % faster than the branch).
+  // >= 0, so their bit patterns order like the values: an integer compare applied with masks,
+  // no branch on the unpredictable "is it nearer" (g++ 12 compiled `c ? i : rep[row]` into one:
+  // 112k mispredictions per call at 300k points / 0.05 m, 13k with the masks).
   r.representative.resize(voxels);
   std::uint32_t* const rep = r.representative.data();
   ws.best.assign(voxels, std::bit_cast<std::uint64_t>(std::numeric_limits<double>::infinity()));
@@ -276,7 +277,7 @@ void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads
         const auto d = std::bit_cast<std::uint64_t>(member_sq_dist(p, a[0], a[1], a[2]));
         const std::uint64_t old = best[row];
         const std::uint32_t old_rep = rep[row];
-        // strict: earlier members win ties; masks, so that no branch is taken on the outcome
+        // strict: earlier members win ties
         const std::uint64_t take = std::uint64_t{0} - static_cast<std::uint64_t>(d < old);
         best[row] = old ^ ((old ^ d) & take);
         rep[row] = old_rep ^ ((old_rep ^ static_cast<std::uint32_t>(s + j)) &
