@@ -454,8 +454,8 @@ TEST(Hdbscan, SameResultForAnyThreadCount) {
 }
 
 TEST(Hdbscan, SmallKnnTreeMatchesBruteForceForAnyThreadCount) {
-  // n <= detail::kSmallKnnMaxPoints uses KnnTreeSmall instead of nanoflann: the leaf-batched
-  // core-distance-only search for Prim, the neighbour-list search for Borůvka. Check both
+  // Prim's core distances come from KnnTreeSmall's leaf-batched search (n <=
+  // detail::kSmallKnnMaxPoints), Borůvka's from the search over its own tree (any n). Check both
   // bitwise against a brute-force (k+1)-th smallest distance, in 2, 3 and 5 dimensions.
   for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
     for (const int dim : {2, 3, 5}) {

@@ -5,6 +5,7 @@
 // d_mr(i,j) = max{core(i), core(j), d(i,j)}. Not API: see ds3d/hdbscan.hpp.
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -431,37 +432,24 @@ inline std::vector<MstEdge> prim_precomputed(const double* dist, std::size_t n,
 // dropped by union-find, which keeps the forest minimal. O(n (D + k)) memory; O(log n) rounds.
 class BoruvkaKdTree {
  public:
-  BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, const std::vector<double>& core,
-                const std::vector<std::uint32_t>& neighbors, std::size_t k1, int num_threads)
+  /// Builds the tree over `data` (n × dim, row-major), computes every point's core distance
+  /// (distance to its k-th nearest other point, 1 <= k < n) and seeds the candidate edges.
+  BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, std::size_t k, int num_threads)
       : n_(n), dim_(dim), threads_(num_threads) {
     perm_.resize(n);
     std::iota(perm_.begin(), perm_.end(), 0U);
     pts_.resize(n * dim);
     core_.resize(n);
-    build(data, core);
-    // Seed candidates from the kNN lists (in tree positions).
-    std::vector<std::uint32_t> pos(n);
-    for (std::size_t i = 0; i < n; ++i) pos[perm_[i]] = static_cast<std::uint32_t>(i);
-    cand_w_.assign(n, std::numeric_limits<double>::infinity());
+    build(data);
+    knn_and_seeds(k + 1);
     lower_ = core_;
-    cand_t_.assign(n, 0U);
-    if (k1 > 0) {
-      for (std::size_t i = 0; i < n; ++i) {
-        const std::uint32_t* nb = neighbors.data() + static_cast<std::size_t>(perm_[i]) * k1;
-        for (std::size_t t = 0; t < k1; ++t) {
-          const std::uint32_t j = pos[nb[t]];
-          if (j == i) continue;
-          const double w = std::max(
-              {core_[i], core_[j],
-               std::sqrt(sq_dist_seq(pts_.data() + i * dim_,
-                                     pts_.data() + static_cast<std::size_t>(j) * dim_, dim_))});
-          if (w < cand_w_[i] || (w == cand_w_[i] && j < cand_t_[i])) {
-            cand_w_[i] = w;
-            cand_t_[i] = j;
-          }
-        }
-      }
-    }
+  }
+
+  /// Core distances by point id.
+  [[nodiscard]] std::vector<double> core_distances() const {
+    std::vector<double> c(n_);
+    for (std::size_t i = 0; i < n_; ++i) c[perm_[i]] = core_[i];
+    return c;
   }
 
   std::vector<MstEdge> run() {
@@ -505,8 +493,16 @@ class BoruvkaKdTree {
                         for (std::size_t r = b; r < e; ++r) {
                           const auto c = roots[r];
                           double bound = comp_w[c];
-                          for (auto m = comp_start[c]; m < comp_start[c + 1]; ++m) {
-                            query(members[m], bound);
+                          for (auto m = comp_start[c]; m < comp_start[c + 1];) {
+                            const std::int32_t k = pure_start_[members[m]];
+                            if (k >= 0) {
+                              process_node(static_cast<std::size_t>(k), c, bound);
+                              m += nodes_[static_cast<std::size_t>(k)].end -
+                                   nodes_[static_cast<std::size_t>(k)].begin;
+                            } else {
+                              query(members[m], bound);
+                              ++m;
+                            }
                           }
                         }
                       });
@@ -558,20 +554,170 @@ class BoruvkaKdTree {
     return r;
   }
 
-  void build(const double* data, const std::vector<double>& core) {
+  void build(const double* data) {
     nodes_.reserve(2 * (n_ / kLeafSize + 1));
     std::vector<std::uint32_t> order(n_);
     std::iota(order.begin(), order.end(), 0U);
     build_node(data, order, 0, static_cast<std::uint32_t>(n_));
+    stride_ = n_ + kLeafSize;  // zero padding: a block read of kLeafSize lanes never overruns
+    soa_.assign(stride_ * dim_, 0.0);
     for (std::size_t i = 0; i < n_; ++i) {
       perm_[i] = order[i];
-      core_[i] = core[order[i]];
-      for (std::size_t j = 0; j < dim_; ++j) pts_[i * dim_ + j] = data[order[i] * dim_ + j];
+      for (std::size_t j = 0; j < dim_; ++j) {
+        pts_[i * dim_ + j] = data[order[i] * dim_ + j];
+        soa_[j * stride_ + i] = pts_[i * dim_ + j];
+      }
     }
+    for (std::size_t k = 0; k < nodes_.size(); ++k) {
+      if (nodes_[k].left < 0) leaves_.push_back(static_cast<std::uint32_t>(k));
+    }
+  }
+
+  // Squared distances from q to the kLeafSize tree positions from b into buf (lanes past a
+  // node's end read other points or the zero padding; callers mask them), each summed in
+  // dimension order with separate roundings, i.e. bitwise sq_dist_seq. Returns the bit mask of
+  // the lanes with buf[t] < r2 (kLe = false) or buf[t] <= r2 (kLe = true).
+  template <bool kLe>
+  std::uint32_t block_dist2(const double* q, std::size_t b, double r2, double* buf) const {
+#if defined(__AVX2__)
+    if (dim_ == 3) {
+      const double* xs = soa_.data() + b;
+      const double* ys = xs + stride_;
+      const double* zs = ys + stride_;
+      const __m256d qx = _mm256_set1_pd(q[0]);
+      const __m256d qy = _mm256_set1_pd(q[1]);
+      const __m256d qz = _mm256_set1_pd(q[2]);
+      const __m256d w = _mm256_set1_pd(r2);
+      std::uint32_t bits = 0;
+      for (std::uint32_t v = 0; v < kLeafSize; v += 4) {
+        const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(xs + v), qx);
+        const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(ys + v), qy);
+        const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(zs + v), qz);
+        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+        _mm256_storeu_pd(buf + v, d2);
+        const __m256d hit =
+            kLe ? _mm256_cmp_pd(d2, w, _CMP_LE_OQ) : _mm256_cmp_pd(d2, w, _CMP_LT_OQ);
+        bits |= static_cast<std::uint32_t>(_mm256_movemask_pd(hit)) << v;
+      }
+      return bits;
+    }
+#endif
+    {
+      const double* x = soa_.data() + b;
+      const double q0 = q[0];
+      for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+        const double g = x[t] - q0;
+        buf[t] = no_contract(g * g);
+      }
+    }
+    for (std::size_t j = 1; j < dim_; ++j) {
+      const double* x = soa_.data() + j * stride_ + b;
+      const double qj = q[j];
+      for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+        const double g = x[t] - qj;
+        buf[t] += no_contract(g * g);
+      }
+    }
+    std::uint32_t bits = 0;
+    for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+      bits |= static_cast<std::uint32_t>(kLe ? buf[t] <= r2 : buf[t] < r2) << t;
+    }
+    return bits;
+  }
+
+#if defined(__AVX2__)
+  static __m256d no_contract256(__m256d v) {
+#if defined(__FMA__) && defined(__GNUC__)
+    asm("" : "+x"(v));  // keeps the product a separate rounding (no FMA), like no_contract
+#endif
+    return v;
+  }
+#endif
+
+  // Offers the points of node nd to the ascending list bd of the kk smallest squared distances
+  // from q (+inf while not full; worst = bd[kk - 1]). Each hit below worst is merged by
+  // bd[i] = min(bd[i], max(bd[i-1], x)), a branch-free sorted insertion.
+  void knn_scan(const double* q, const Node& nd, std::size_t kk, double* bd, double& worst) const {
+    double buf[kLeafSize];
+    for (std::size_t b = nd.begin; b < nd.end; b += kLeafSize) {
+      const auto len = static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - b));
+      std::uint32_t bits = block_dist2<false>(q, b, worst, buf) & ((1U << len) - 1U);
+      while (bits != 0U) {
+        const auto t = static_cast<std::uint32_t>(std::countr_zero(bits));
+        bits &= bits - 1U;
+        const double x = buf[t];
+        if (!(x < worst)) continue;  // cannot lower the kk-th smallest
+        for (std::size_t i = kk - 1; i > 0; --i) bd[i] = std::min(bd[i], std::max(bd[i - 1], x));
+        bd[0] = std::min(bd[0], x);
+        worst = bd[kk - 1];
+      }
+    }
+  }
+
+  // Core distances and first candidate edges, both exact.
+  // 1. core(s) = sqrt of the kk-th smallest squared distance from s, itself included (the
+  //    distance to its k-th nearest other point): the own leaf first, then the tree from the
+  //    root, skipping boxes at or beyond the current kk-th value. Box distances are exact lower
+  //    bounds (monotone rounding), so this is bitwise brute force, whatever the tie order.
+  // 2. The seed of s is the cheapest edge to a point of its core ball {t != s: d²(s,t) <= r²},
+  //    r² = that kk-th squared distance. There d(s,t) <= core(s), so the edge weighs
+  //    max{core(s), core(t)}; ties go to the smallest tree position. The ball is the k-nearest
+  //    list unless several points tie at the k-th distance (then it holds all of them, so the
+  //    seed no longer depends on how a kNN search orders ties). When some core(t) <= core(s)
+  //    the seed weighs core(s), a lower bound of every edge of s: it is optimal.
+  // Queries run leaf by leaf, each writing only its own outputs: identical for any thread count.
+  void knn_and_seeds(std::size_t kk) {
+    const double inf = std::numeric_limits<double>::infinity();
+    std::vector<double> r2(n_);
+    cand_w_.assign(n_, inf);
+    cand_t_.assign(n_, 0U);
+    const std::size_t chunks = std::size_t{16} * static_cast<std::size_t>(std::max(1, threads_));
+    parallel_chunks(leaves_.size(), chunks, threads_,
+                    [&](std::size_t b, std::size_t e, std::size_t) {
+                      std::vector<double> bd(kk);
+                      std::vector<std::uint32_t> stack;
+                      stack.reserve(128);
+                      for (std::size_t li = b; li < e; ++li) {
+                        const auto leaf = leaves_[li];
+                        const Node& ln = nodes_[leaf];
+                        for (auto s = ln.begin; s < ln.end; ++s) {
+                          const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
+                          std::fill(bd.begin(), bd.end(), inf);
+                          double worst = inf;
+                          knn_scan(q, ln, kk, bd.data(), worst);
+                          stack.assign(1, 0U);
+                          while (!stack.empty()) {
+                            const auto k = stack.back();
+                            stack.pop_back();
+                            if (k == leaf) continue;
+                            const Node& nd = nodes_[k];
+                            if (nd.left < 0) {
+                              knn_scan(q, nd, kk, bd.data(), worst);
+                              continue;
+                            }
+                            const auto l = static_cast<std::uint32_t>(nd.left);
+                            const auto r = static_cast<std::uint32_t>(nd.right);
+                            const double dl = box_dist2(q, l);
+                            const double dr = box_dist2(q, r);
+                            if (dl <= dr) {  // nearer child on top
+                              if (dr < worst) stack.push_back(r);
+                              if (dl < worst) stack.push_back(l);
+                            } else {
+                              if (dl < worst) stack.push_back(l);
+                              if (dr < worst) stack.push_back(r);
+                            }
+                          }
+                          r2[s] = bd[kk - 1];
+                          core_[s] = std::sqrt(bd[kk - 1]);
+                        }
+                      }
+                    });
     for (std::size_t k = nodes_.size(); k-- > 0;) {
       auto& nd = nodes_[k];
       if (nd.left < 0) {
-        double m = std::numeric_limits<double>::infinity();
+        double m = inf;
         for (auto i = nd.begin; i < nd.end; ++i) m = std::min(m, core_[i]);
         nd.min_core = m;
       } else {
@@ -579,6 +725,59 @@ class BoruvkaKdTree {
                                nodes_[static_cast<std::size_t>(nd.right)].min_core);
       }
     }
+    parallel_chunks(
+        leaves_.size(), chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
+          std::vector<std::uint32_t> stack;
+          stack.reserve(128);
+          double buf[kLeafSize];
+          for (std::size_t li = b; li < e; ++li) {
+            const Node& ln = nodes_[leaves_[li]];
+            for (auto s = ln.begin; s < ln.end; ++s) {
+              const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
+              const double rs = r2[s];
+              const double cs = core_[s];
+              double best_w = inf;
+              std::uint32_t best_t = 0;
+              // A node can only hold a better seed if max{core(s), its min core} is below best_w,
+              // or equal to it with a smaller tree position.
+              auto may_improve = [&](const Node& nd) {
+                const double lb = std::max(cs, nd.min_core);
+                return lb < best_w || (lb == best_w && nd.begin < best_t);
+              };
+              stack.assign(1, 0U);
+              while (!stack.empty()) {
+                const Node& nd = nodes_[stack.back()];
+                stack.pop_back();
+                if (!may_improve(nd)) continue;
+                if (nd.left < 0) {
+                  for (std::size_t bb = nd.begin; bb < nd.end; bb += kLeafSize) {
+                    const auto len =
+                        static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - bb));
+                    std::uint32_t bits = block_dist2<true>(q, bb, rs, buf) & ((1U << len) - 1U);
+                    while (bits != 0U) {
+                      const auto t = static_cast<std::uint32_t>(bb) +
+                                     static_cast<std::uint32_t>(std::countr_zero(bits));
+                      bits &= bits - 1U;
+                      if (t == s) continue;
+                      const double w = std::max(cs, core_[t]);
+                      if (w < best_w || (w == best_w && t < best_t)) {
+                        best_w = w;
+                        best_t = t;
+                      }
+                    }
+                  }
+                  continue;
+                }
+                const auto l = static_cast<std::uint32_t>(nd.left);
+                const auto r = static_cast<std::uint32_t>(nd.right);
+                if (box_dist2(q, r) <= rs) stack.push_back(r);
+                if (box_dist2(q, l) <= rs) stack.push_back(l);  // left (smaller positions) first
+              }
+              cand_w_[s] = best_w;
+              cand_t_[s] = best_t;
+            }
+          }
+        });
   }
 
   std::int32_t build_node(const double* data, std::vector<std::uint32_t>& order, std::uint32_t b,
@@ -618,6 +817,9 @@ class BoruvkaKdTree {
     return id;
   }
 
+  // Marks every node whose points all lie in one component, and records for each tree position
+  // the largest such node with more than one point that starts there (nodes_ is in preorder, so
+  // the first one met is the largest).
   void label_nodes(const std::vector<std::uint32_t>& comp) {
     for (std::size_t k = nodes_.size(); k-- > 0;) {
       auto& nd = nodes_[k];
@@ -632,6 +834,82 @@ class BoruvkaKdTree {
         nd.comp = cl == nodes_[static_cast<std::size_t>(nd.right)].comp ? cl : kMixed;
       }
     }
+    pure_start_.assign(n_, -1);
+    for (std::size_t k = 0; k < nodes_.size(); ++k) {
+      const auto& nd = nodes_[k];
+      if (nd.comp != kMixed && nd.end - nd.begin > 1 && pure_start_[nd.begin] < 0) {
+        pure_start_[nd.begin] = static_cast<std::int32_t>(k);
+      }
+    }
+  }
+
+  // Queries the points of node k (all in component c, in tree order) with the same effect as
+  // calling query() on each of them in turn, but first tries to prove for the whole node at
+  // once that no point of another component can give any of them an edge below `bound`
+  // (far_from_others). Then every query would find nothing, and its only effect, the lower
+  // bound update, is applied directly. Bounds only decrease, so a proof for the node also
+  // holds for each point's own, possibly smaller, bound.
+  void process_node(std::size_t k, std::uint32_t c, double& bound) {
+    const Node& nd = nodes_[k];
+    if (far_from_others(k, c, bound)) {
+      for (auto i = nd.begin; i < nd.end; ++i) {
+        // query()'s early exits, then its "nothing found" update (bound0 = bound here, as the
+        // component bound never exceeds a member's own candidate).
+        if (cand_w_[i] == core_[i] || lower_[i] >= bound || core_[i] >= bound) continue;
+        lower_[i] = std::max(lower_[i], bound);
+      }
+      return;
+    }
+    if (nd.left < 0) {
+      for (auto i = nd.begin; i < nd.end; ++i) query(i, bound);
+      return;
+    }
+    process_node(static_cast<std::size_t>(nd.left), c, bound);
+    process_node(static_cast<std::size_t>(nd.right), c, bound);
+  }
+
+  // Squared distance between the boxes of nodes a and b: a lower bound of every computed
+  // sq_dist_seq between their points, by monotone rounding (as box_dist2).
+  [[nodiscard]] double box_box_dist2(std::size_t a, std::size_t b) const {
+    const double* alo = lo_.data() + a * dim_;
+    const double* ahi = hi_.data() + a * dim_;
+    const double* blo = lo_.data() + b * dim_;
+    const double* bhi = hi_.data() + b * dim_;
+    double s = 0.0;
+    for (std::size_t j = 0; j < dim_; ++j) {
+      const double d = gap(blo[j] - ahi[j], alo[j] - bhi[j]);
+      s += no_contract(d * d);
+    }
+    return s;
+  }
+
+  // True when query() of any point of node k (component c) with a bound <= `bound` provably
+  // accepts no edge: every point of another component is pruned by the same tests query()
+  // applies (κ lower bound >= bound, or squared distance above bound²·(1 + 1e-14)), here taken
+  // for the node's box and its smallest core distance.
+  [[nodiscard]] bool far_from_others(std::size_t k, std::uint32_t c, double bound) const {
+    const double hi2 = bound * bound * (1.0 + 1e-14);
+    const double qcore = nodes_[k].min_core;
+    if (qcore >= bound) return true;
+    std::int32_t stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const auto r = static_cast<std::size_t>(stack[--top]);
+      const Node& nd = nodes_[r];
+      if (nd.comp == c || nd.min_core >= bound) continue;
+      if (box_box_dist2(k, r) > hi2) continue;
+      if (nd.left < 0) {
+        for (auto i = nd.begin; i < nd.end; ++i) {
+          if (comp_[i] == c || core_[i] >= bound) continue;
+          if (box_dist2(pts_.data() + static_cast<std::size_t>(i) * dim_, k) <= hi2) return false;
+        }
+        continue;
+      }
+      stack[top++] = nd.right;
+      stack[top++] = nd.left;
+    }
+    return true;
   }
 
   // Squared distance from q to node k's box: a lower bound of every computed sq_dist_seq to its
@@ -733,19 +1011,28 @@ class BoruvkaKdTree {
   std::vector<double> core_;         // core distances in tree order
   std::vector<Node> nodes_;
   std::vector<double> lo_, hi_;
+  std::vector<double> soa_;            // coordinates per dimension: soa_[j * stride_ + position]
+  std::size_t stride_ = 0;             // n_ + kLeafSize (zero padding)
+  std::vector<std::uint32_t> leaves_;  // leaf node ids in tree order
   std::vector<std::uint32_t> uf_parent_;
-  std::vector<double> cand_w_;         // per tree position: best known edge weight
-  std::vector<double> lower_;          // ... and a lower bound of the best edge weight
-  std::vector<std::uint32_t> cand_t_;  // ... and its target (tree position)
+  std::vector<double> cand_w_;            // per tree position: best known edge weight
+  std::vector<double> lower_;             // ... and a lower bound of the best edge weight
+  std::vector<std::uint32_t> cand_t_;     // ... and its target (tree position)
+  std::vector<std::int32_t> pure_start_;  // per tree position: largest one-component node from it
   const std::uint32_t* comp_ = nullptr;
 };
 
+// Core distances (k-th nearest other point, 1 <= k < n) into `core` and the MST by KD-tree
+// Borůvka, sharing one tree.
 inline std::vector<MstEdge> boruvka_kdtree(const double* data, std::size_t n, std::size_t dim,
-                                           const std::vector<double>& core,
-                                           const std::vector<std::uint32_t>& neighbors,
-                                           std::size_t k1, int num_threads) {
-  if (n < 2) return {};
-  BoruvkaKdTree t(data, n, dim, core, neighbors, k1, num_threads);
+                                           std::size_t k, int num_threads,
+                                           std::vector<double>& core) {
+  if (n < 2) {
+    core.assign(n, 0.0);
+    return {};
+  }
+  BoruvkaKdTree t(data, n, dim, k, num_threads);
+  core = t.core_distances();
   return t.run();
 }
 
