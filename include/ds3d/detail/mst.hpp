@@ -538,7 +538,8 @@ class BoruvkaKdTree {
     std::uint32_t begin, end;
     std::int32_t left, right;  // -1 for leaves
     double min_core;
-    std::uint32_t comp;  // component of all points, or kMixed
+    std::uint32_t comp;   // component of all points, or kMixed
+    std::int32_t parent;  // -1 for the root
   };
   static constexpr std::uint32_t kMixed = 0xFFFFFFFFU;
   static constexpr std::uint32_t kLeafSize = 16;
@@ -656,10 +657,96 @@ class BoruvkaKdTree {
     }
   }
 
+  // Leaf-first walk for the queries of knn_and_seeds: node `leaf` (holding q) first, then for
+  // each ancestor the other child's subtree, nearest child first inside it. Every subtree whose
+  // box is not accepted by keep(box²) is skipped; visit(node) handles the leaves met.
+  template <class Keep, class Visit>
+  void walk_from_leaf(const double* q, std::uint32_t leaf, Keep&& keep, Visit&& visit) const {
+    visit(nodes_[leaf]);
+    struct Entry {
+      std::uint32_t node;
+      double box2;
+    };
+    Entry stack[128];
+    for (std::uint32_t c = leaf; nodes_[c].parent >= 0;) {
+      const auto p = static_cast<std::uint32_t>(nodes_[c].parent);
+      const Node& pn = nodes_[p];
+      const auto sib =
+          static_cast<std::uint32_t>(pn.left == static_cast<std::int32_t>(c) ? pn.right : pn.left);
+      c = p;
+      int top = 0;
+      stack[top++] = {sib, box_dist2(q, sib)};
+      while (top > 0) {
+        const Entry en = stack[--top];
+        if (!keep(en.box2)) continue;
+        const Node& nd = nodes_[en.node];
+        if (nd.left < 0) {
+          visit(nd);
+          continue;
+        }
+        const auto l = static_cast<std::uint32_t>(nd.left);
+        const auto r = static_cast<std::uint32_t>(nd.right);
+        const Entry el{l, box_dist2(q, l)};
+        const Entry er{r, box_dist2(q, r)};
+        if (el.box2 <= er.box2) {  // nearer child on top
+          if (keep(er.box2)) stack[top++] = er;
+          if (keep(el.box2)) stack[top++] = el;
+        } else {
+          if (keep(el.box2)) stack[top++] = el;
+          if (keep(er.box2)) stack[top++] = er;
+        }
+      }
+    }
+  }
+
+  // Pass 1 of knn_and_seeds for tree position s (in leaf `leaf`): bd receives the kk smallest
+  // squared distances from s, ascending.
+  void knn_query(std::uint32_t s, std::uint32_t leaf, std::size_t kk, double* bd) const {
+    const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
+    std::fill(bd, bd + kk, std::numeric_limits<double>::infinity());
+    double worst = std::numeric_limits<double>::infinity();
+    walk_from_leaf(
+        q, leaf, [&](double box2) { return box2 < worst; },
+        [&](const Node& nd) { knn_scan(q, nd, kk, bd, worst); });
+  }
+
+  // Pass 2 of knn_and_seeds: the cheapest (weight, tree position) edge from s to its core ball
+  // (squared radius rs).
+  void seed_query(std::uint32_t s, std::uint32_t leaf, double rs, double& best_w,
+                  std::uint32_t& best_t) const {
+    const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
+    const double cs = core_[s];
+    double buf[kLeafSize];
+    walk_from_leaf(
+        q, leaf, [&](double box2) { return box2 <= rs; },
+        [&](const Node& nd) {
+          // The node can only hold a better seed if max{core(s), its min core} is below best_w,
+          // or equal to it with a smaller tree position.
+          const double lb = std::max(cs, nd.min_core);
+          if (!(lb < best_w || (lb == best_w && nd.begin < best_t))) return;
+          for (std::size_t bb = nd.begin; bb < nd.end; bb += kLeafSize) {
+            const auto len =
+                static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - bb));
+            std::uint32_t bits = block_dist2<true>(q, bb, rs, buf) & ((1U << len) - 1U);
+            while (bits != 0U) {
+              const auto t = static_cast<std::uint32_t>(bb) +
+                             static_cast<std::uint32_t>(std::countr_zero(bits));
+              bits &= bits - 1U;
+              if (t == s) continue;
+              const double w = std::max(cs, core_[t]);
+              if (w < best_w || (w == best_w && t < best_t)) {
+                best_w = w;
+                best_t = t;
+              }
+            }
+          }
+        });
+  }
+
   // Core distances and first candidate edges, both exact.
   // 1. core(s) = sqrt of the kk-th smallest squared distance from s, itself included (the
-  //    distance to its k-th nearest other point): the own leaf first, then the tree from the
-  //    root, skipping boxes at or beyond the current kk-th value. Box distances are exact lower
+  //    distance to its k-th nearest other point), by walk_from_leaf, skipping boxes at or
+  //    beyond the current kk-th value. Box distances are exact lower
   //    bounds (monotone rounding), so this is bitwise brute force, whatever the tie order.
   // 2. The seed of s is the cheapest edge to a point of its core ball {t != s: d²(s,t) <= r²},
   //    r² = that kk-th squared distance. There d(s,t) <= core(s), so the edge weighs
@@ -677,38 +764,11 @@ class BoruvkaKdTree {
     parallel_chunks(leaves_.size(), chunks, threads_,
                     [&](std::size_t b, std::size_t e, std::size_t) {
                       std::vector<double> bd(kk);
-                      std::vector<std::uint32_t> stack;
-                      stack.reserve(128);
                       for (std::size_t li = b; li < e; ++li) {
                         const auto leaf = leaves_[li];
                         const Node& ln = nodes_[leaf];
                         for (auto s = ln.begin; s < ln.end; ++s) {
-                          const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
-                          std::fill(bd.begin(), bd.end(), inf);
-                          double worst = inf;
-                          knn_scan(q, ln, kk, bd.data(), worst);
-                          stack.assign(1, 0U);
-                          while (!stack.empty()) {
-                            const auto k = stack.back();
-                            stack.pop_back();
-                            if (k == leaf) continue;
-                            const Node& nd = nodes_[k];
-                            if (nd.left < 0) {
-                              knn_scan(q, nd, kk, bd.data(), worst);
-                              continue;
-                            }
-                            const auto l = static_cast<std::uint32_t>(nd.left);
-                            const auto r = static_cast<std::uint32_t>(nd.right);
-                            const double dl = box_dist2(q, l);
-                            const double dr = box_dist2(q, r);
-                            if (dl <= dr) {  // nearer child on top
-                              if (dr < worst) stack.push_back(r);
-                              if (dl < worst) stack.push_back(l);
-                            } else {
-                              if (dl < worst) stack.push_back(l);
-                              if (dr < worst) stack.push_back(r);
-                            }
-                          }
+                          knn_query(s, leaf, kk, bd.data());
                           r2[s] = bd[kk - 1];
                           core_[s] = std::sqrt(bd[kk - 1]);
                         }
@@ -725,65 +785,26 @@ class BoruvkaKdTree {
                                nodes_[static_cast<std::size_t>(nd.right)].min_core);
       }
     }
-    parallel_chunks(
-        leaves_.size(), chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
-          std::vector<std::uint32_t> stack;
-          stack.reserve(128);
-          double buf[kLeafSize];
-          for (std::size_t li = b; li < e; ++li) {
-            const Node& ln = nodes_[leaves_[li]];
-            for (auto s = ln.begin; s < ln.end; ++s) {
-              const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
-              const double rs = r2[s];
-              const double cs = core_[s];
-              double best_w = inf;
-              std::uint32_t best_t = 0;
-              // A node can only hold a better seed if max{core(s), its min core} is below best_w,
-              // or equal to it with a smaller tree position.
-              auto may_improve = [&](const Node& nd) {
-                const double lb = std::max(cs, nd.min_core);
-                return lb < best_w || (lb == best_w && nd.begin < best_t);
-              };
-              stack.assign(1, 0U);
-              while (!stack.empty()) {
-                const Node& nd = nodes_[stack.back()];
-                stack.pop_back();
-                if (!may_improve(nd)) continue;
-                if (nd.left < 0) {
-                  for (std::size_t bb = nd.begin; bb < nd.end; bb += kLeafSize) {
-                    const auto len =
-                        static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - bb));
-                    std::uint32_t bits = block_dist2<true>(q, bb, rs, buf) & ((1U << len) - 1U);
-                    while (bits != 0U) {
-                      const auto t = static_cast<std::uint32_t>(bb) +
-                                     static_cast<std::uint32_t>(std::countr_zero(bits));
-                      bits &= bits - 1U;
-                      if (t == s) continue;
-                      const double w = std::max(cs, core_[t]);
-                      if (w < best_w || (w == best_w && t < best_t)) {
-                        best_w = w;
-                        best_t = t;
+    parallel_chunks(leaves_.size(), chunks, threads_,
+                    [&](std::size_t b, std::size_t e, std::size_t) {
+                      for (std::size_t li = b; li < e; ++li) {
+                        const auto leaf = leaves_[li];
+                        const Node& ln = nodes_[leaf];
+                        for (auto s = ln.begin; s < ln.end; ++s) {
+                          double best_w = inf;
+                          std::uint32_t best_t = 0;
+                          seed_query(s, leaf, r2[s], best_w, best_t);
+                          cand_w_[s] = best_w;
+                          cand_t_[s] = best_t;
+                        }
                       }
-                    }
-                  }
-                  continue;
-                }
-                const auto l = static_cast<std::uint32_t>(nd.left);
-                const auto r = static_cast<std::uint32_t>(nd.right);
-                if (box_dist2(q, r) <= rs) stack.push_back(r);
-                if (box_dist2(q, l) <= rs) stack.push_back(l);  // left (smaller positions) first
-              }
-              cand_w_[s] = best_w;
-              cand_t_[s] = best_t;
-            }
-          }
-        });
+                    });
   }
 
   std::int32_t build_node(const double* data, std::vector<std::uint32_t>& order, std::uint32_t b,
                           std::uint32_t e) {
     const auto id = static_cast<std::int32_t>(nodes_.size());
-    nodes_.push_back({b, e, -1, -1, 0.0, kMixed});
+    nodes_.push_back({b, e, -1, -1, 0.0, kMixed, -1});
     lo_.resize(nodes_.size() * dim_);
     hi_.resize(nodes_.size() * dim_);
     double* lo = lo_.data() + static_cast<std::size_t>(id) * dim_;
@@ -814,6 +835,8 @@ class BoruvkaKdTree {
     const auto r = build_node(data, order, mid, e);
     nodes_[static_cast<std::size_t>(id)].left = l;
     nodes_[static_cast<std::size_t>(id)].right = r;
+    nodes_[static_cast<std::size_t>(l)].parent = id;
+    nodes_[static_cast<std::size_t>(r)].parent = id;
     return id;
   }
 
@@ -917,6 +940,14 @@ class BoruvkaKdTree {
   [[nodiscard]] double box_dist2(const double* q, std::size_t k) const {
     const double* lo = lo_.data() + k * dim_;
     const double* hi = hi_.data() + k * dim_;
+    if (dim_ == 3) {  // the loop below, unrolled (same operations, same order)
+      const double g0 = gap(lo[0] - q[0], q[0] - hi[0]);
+      const double g1 = gap(lo[1] - q[1], q[1] - hi[1]);
+      const double g2 = gap(lo[2] - q[2], q[2] - hi[2]);
+      double s = 0.0 + no_contract(g0 * g0);
+      s += no_contract(g1 * g1);
+      return s + no_contract(g2 * g2);
+    }
     double s = 0.0;
     for (std::size_t j = 0; j < dim_; ++j) {
       const double a = lo[j] - q[j];
