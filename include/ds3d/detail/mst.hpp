@@ -641,6 +641,14 @@ class BoruvkaKdTree {
   // from q (+inf while not full; worst = bd[kk - 1]). Each hit below worst is merged by
   // bd[i] = min(bd[i], max(bd[i-1], x)), a branch-free sorted insertion.
   void knn_scan(const double* q, const Node& nd, std::size_t kk, double* bd, double& worst) const {
+#if defined(__AVX2__)
+    if (dim_ == 3) {
+      if (kk <= 4) return knn_scan_avx2<1>(q, nd, kk, bd, worst);
+      if (kk <= 8) return knn_scan_avx2<2>(q, nd, kk, bd, worst);
+      if (kk <= 12) return knn_scan_avx2<3>(q, nd, kk, bd, worst);
+      if (kk <= 16) return knn_scan_avx2<4>(q, nd, kk, bd, worst);
+    }
+#endif
     double buf[kLeafSize];
     for (std::size_t b = nd.begin; b < nd.end; b += kLeafSize) {
       const auto len = static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - b));
@@ -700,48 +708,98 @@ class BoruvkaKdTree {
   }
 
   // Pass 1 of knn_and_seeds for tree position s (in leaf `leaf`): bd receives the kk smallest
-  // squared distances from s, ascending.
-  void knn_query(std::uint32_t s, std::uint32_t leaf, std::size_t kk, double* bd) const {
+  // squared distances from s, ascending. Every leaf it scans is appended to `seen` once (mark
+  // holds the stamp of the leaf batch that listed it). Boxes are kept while box² <= the current
+  // kk-th value (not <), so the scanned leaves cover the whole core ball, boundary ties included.
+  void knn_query(std::uint32_t s, std::uint32_t leaf, std::size_t kk, double* bd,
+                 std::vector<std::uint32_t>& seen, std::vector<std::uint32_t>& mark,
+                 std::uint32_t stamp) const {
     const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
-    std::fill(bd, bd + kk, std::numeric_limits<double>::infinity());
+    std::fill(bd, bd + ((kk + 3) & ~std::size_t{3}), std::numeric_limits<double>::infinity());
     double worst = std::numeric_limits<double>::infinity();
     walk_from_leaf(
-        q, leaf, [&](double box2) { return box2 < worst; },
-        [&](const Node& nd) { knn_scan(q, nd, kk, bd, worst); });
+        q, leaf, [&](double box2) { return box2 <= worst; },
+        [&](const Node& nd) {
+          const auto id = static_cast<std::size_t>(&nd - nodes_.data());
+          if (mark[id] != stamp) {
+            mark[id] = stamp;
+            seen.push_back(static_cast<std::uint32_t>(id));
+          }
+          knn_scan(q, nd, kk, bd, worst);
+        });
   }
 
   // Pass 2 of knn_and_seeds: the cheapest (weight, tree position) edge from s to its core ball
-  // (squared radius rs).
-  void seed_query(std::uint32_t s, std::uint32_t leaf, double rs, double& best_w,
-                  std::uint32_t& best_t) const {
+  // (squared radius rs), looked up in `near`, the leaves that pass 1 scanned for s's leaf.
+  void seed_query(std::uint32_t s, const std::uint32_t* near, std::size_t num_near, double rs,
+                  double& best_w, std::uint32_t& best_t) const {
     const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
     const double cs = core_[s];
     double buf[kLeafSize];
-    walk_from_leaf(
-        q, leaf, [&](double box2) { return box2 <= rs; },
-        [&](const Node& nd) {
-          // The node can only hold a better seed if max{core(s), its min core} is below best_w,
-          // or equal to it with a smaller tree position.
-          const double lb = std::max(cs, nd.min_core);
-          if (!(lb < best_w || (lb == best_w && nd.begin < best_t))) return;
-          for (std::size_t bb = nd.begin; bb < nd.end; bb += kLeafSize) {
-            const auto len =
-                static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - bb));
-            std::uint32_t bits = block_dist2<true>(q, bb, rs, buf) & ((1U << len) - 1U);
-            while (bits != 0U) {
-              const auto t = static_cast<std::uint32_t>(bb) +
-                             static_cast<std::uint32_t>(std::countr_zero(bits));
-              bits &= bits - 1U;
-              if (t == s) continue;
-              const double w = std::max(cs, core_[t]);
-              if (w < best_w || (w == best_w && t < best_t)) {
-                best_w = w;
-                best_t = t;
-              }
+    for (std::size_t u = 0; u < num_near; ++u) {
+      const Node& nd = nodes_[near[u]];
+      {
+        // The leaf can only hold a better seed if max{core(s), its min core} is below best_w,
+        // or equal to it with a smaller tree position.
+        const double lb = std::max(cs, nd.min_core);
+        if (!(lb < best_w || (lb == best_w && nd.begin < best_t))) continue;
+        if (box_dist2(q, near[u]) > rs) continue;
+        for (std::size_t bb = nd.begin; bb < nd.end; bb += kLeafSize) {
+          const auto len =
+              static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - bb));
+          std::uint32_t bits = block_dist2<true>(q, bb, rs, buf) & ((1U << len) - 1U);
+          while (bits != 0U) {
+            const auto t =
+                static_cast<std::uint32_t>(bb) + static_cast<std::uint32_t>(std::countr_zero(bits));
+            bits &= bits - 1U;
+            if (t == s) continue;
+            const double w = std::max(cs, core_[t]);
+            if (w < best_w || (w == best_w && t < best_t)) {
+              best_w = w;
+              best_t = t;
             }
           }
-        });
+        }
+      }
+    }
   }
+
+#if defined(__AVX2__)
+  // knn_scan with the list held in kB 4-lane registers (4·kB >= kk slots, ascending; bd must
+  // have 4·kB slots). The merge runs on whole registers: bd[i-1] is the list shifted up one lane
+  // (a lane permute plus the top lane of the register below; -inf below slot 0). The same
+  // values as the scalar merge (as KnnTreeSmall::scan_core_avx2).
+  template <int kB>
+  void knn_scan_avx2(const double* q, const Node& nd, std::size_t kk, double* bd,
+                     double& worst) const {
+    __m256d v[kB];
+    for (int j = 0; j < kB; ++j) v[j] = _mm256_loadu_pd(bd + 4 * j);
+    const int wl = static_cast<int>((kk - 1) & 3U);  // lane of slot kk - 1 in v[(kk - 1) / 4]
+    const auto wb = static_cast<int>((kk - 1) / 4);
+    const __m256d neg_inf = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
+    double buf[kLeafSize];
+    for (std::size_t b = nd.begin; b < nd.end; b += kLeafSize) {
+      const auto len = static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - b));
+      std::uint32_t bits = block_dist2<false>(q, b, worst, buf) & ((1U << len) - 1U);
+      while (bits != 0U) {
+        const auto t = static_cast<std::uint32_t>(std::countr_zero(bits));
+        bits &= bits - 1U;
+        const double x = buf[t];
+        if (!(x < worst)) continue;  // cannot lower the kk-th smallest
+        const __m256d vx = _mm256_set1_pd(x);
+        for (int j = kB - 1; j >= 0; --j) {
+          const __m256d below = j > 0 ? _mm256_permute4x64_pd(v[j - 1], 0xFF) : neg_inf;
+          const __m256d up = _mm256_blend_pd(_mm256_permute4x64_pd(v[j], 0x93), below, 0x1);
+          v[j] = _mm256_min_pd(v[j], _mm256_max_pd(up, vx));
+        }
+        alignas(32) double top[4];
+        _mm256_store_pd(top, v[wb]);
+        worst = top[wl];
+      }
+    }
+    for (int j = 0; j < kB; ++j) _mm256_storeu_pd(bd + 4 * j, v[j]);
+  }
+#endif
 
   // Core distances and first candidate edges, both exact.
   // 1. core(s) = sqrt of the kk-th smallest squared distance from s, itself included (the
@@ -758,22 +816,25 @@ class BoruvkaKdTree {
   void knn_and_seeds(std::size_t kk) {
     const double inf = std::numeric_limits<double>::infinity();
     std::vector<double> r2(n_);
+    std::vector<std::vector<std::uint32_t>> near(leaves_.size());  // leaves scanned per leaf
     cand_w_.assign(n_, inf);
     cand_t_.assign(n_, 0U);
     const std::size_t chunks = std::size_t{16} * static_cast<std::size_t>(std::max(1, threads_));
-    parallel_chunks(leaves_.size(), chunks, threads_,
-                    [&](std::size_t b, std::size_t e, std::size_t) {
-                      std::vector<double> bd(kk);
-                      for (std::size_t li = b; li < e; ++li) {
-                        const auto leaf = leaves_[li];
-                        const Node& ln = nodes_[leaf];
-                        for (auto s = ln.begin; s < ln.end; ++s) {
-                          knn_query(s, leaf, kk, bd.data());
-                          r2[s] = bd[kk - 1];
-                          core_[s] = std::sqrt(bd[kk - 1]);
-                        }
-                      }
-                    });
+    parallel_chunks(
+        leaves_.size(), chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
+          std::vector<double> bd((kk + 3) & ~std::size_t{3});  // slots for knn_scan_avx2
+          std::vector<std::uint32_t> mark(nodes_.size(), 0U);
+          for (std::size_t li = b; li < e; ++li) {
+            const auto leaf = leaves_[li];
+            const Node& ln = nodes_[leaf];
+            auto& seen = near[li];
+            for (auto s = ln.begin; s < ln.end; ++s) {
+              knn_query(s, leaf, kk, bd.data(), seen, mark, static_cast<std::uint32_t>(li + 1));
+              r2[s] = bd[kk - 1];
+              core_[s] = std::sqrt(bd[kk - 1]);
+            }
+          }
+        });
     for (std::size_t k = nodes_.size(); k-- > 0;) {
       auto& nd = nodes_[k];
       if (nd.left < 0) {
@@ -793,7 +854,7 @@ class BoruvkaKdTree {
                         for (auto s = ln.begin; s < ln.end; ++s) {
                           double best_w = inf;
                           std::uint32_t best_t = 0;
-                          seed_query(s, leaf, r2[s], best_w, best_t);
+                          seed_query(s, near[li].data(), near[li].size(), r2[s], best_w, best_t);
                           cand_w_[s] = best_w;
                           cand_t_[s] = best_t;
                         }
