@@ -730,7 +730,8 @@ class BoruvkaKdTree {
   }
 
   // Pass 2 of knn_and_seeds: the cheapest (weight, tree position) edge from s to its core ball
-  // (squared radius rs), looked up in `near`, the leaves that pass 1 scanned for s's leaf.
+  // (squared radius rs), looked up in `near`, the leaves that pass 1 scanned for s's leaf, in
+  // tree order.
   void seed_query(std::uint32_t s, const std::uint32_t* near, std::size_t num_near, double rs,
                   double& best_w, std::uint32_t& best_t) const {
     const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
@@ -738,6 +739,9 @@ class BoruvkaKdTree {
     double buf[kLeafSize];
     for (std::size_t u = 0; u < num_near; ++u) {
       const Node& nd = nodes_[near[u]];
+      // `near` is in tree order and no edge of s weighs less than core(s): once that weight is
+      // reached, later leaves can only tie it with larger tree positions.
+      if (best_w == cs && nd.begin >= best_t) break;
       {
         // The leaf can only hold a better seed if max{core(s), its min core} is below best_w,
         // or equal to it with a smaller tree position.
@@ -833,6 +837,7 @@ class BoruvkaKdTree {
               r2[s] = bd[kk - 1];
               core_[s] = std::sqrt(bd[kk - 1]);
             }
+            std::sort(seen.begin(), seen.end());  // leaf ids in preorder = tree order
           }
         });
     for (std::size_t k = nodes_.size(); k-- > 0;) {
