@@ -457,16 +457,23 @@ class BoruvkaKdTree {
     edges.reserve(n_ - 1);
     uf_parent_.resize(n_);
     std::iota(uf_parent_.begin(), uf_parent_.end(), 0U);
-    std::vector<std::uint32_t> comp(n_);  // component (root point id) of each tree position
+    // Components are numbered 0..nc-1 in the order of their root point ids, so the per-component
+    // passes below cost O(nc), not O(n), and edges are emitted in root order as before.
+    std::vector<std::uint32_t> comp(n_);   // component of each tree position
+    std::vector<std::uint32_t> dense(n_);  // root point id -> component
     std::vector<double> comp_w(n_);
     std::vector<std::uint32_t> comp_q(n_);
-    std::vector<std::uint32_t> comp_start(n_ + 1), fill(n_), members(n_), roots;
+    std::vector<std::uint32_t> comp_start(n_ + 1), fill(n_), members(n_);
     const double inf = std::numeric_limits<double>::infinity();
     while (edges.size() + 1 < n_) {
-      for (std::size_t i = 0; i < n_; ++i) comp[i] = find(perm_[i]);
+      std::uint32_t nc = 0;
+      for (std::uint32_t x = 0; x < n_; ++x) {
+        if (uf_parent_[x] == x) dense[x] = nc++;
+      }
+      for (std::size_t i = 0; i < n_; ++i) comp[i] = dense[find(perm_[i])];
       label_nodes(comp);
       // Drop candidates that now point into the own component; component bounds from the rest.
-      std::fill(comp_w.begin(), comp_w.end(), inf);
+      std::fill(comp_w.begin(), comp_w.begin() + nc, inf);
       for (std::size_t i = 0; i < n_; ++i) {
         if (cand_w_[i] < inf && comp[cand_t_[i]] == comp[i]) cand_w_[i] = inf;
         if (cand_w_[i] < comp_w[comp[i]]) {
@@ -478,20 +485,15 @@ class BoruvkaKdTree {
       // Members of each component, contiguous and in tree order (counting sort). Each
       // component is searched by one thread in this fixed order, so its running bound, and
       // hence every result, is the same for any thread count.
-      std::fill(comp_start.begin(), comp_start.end(), 0U);
+      std::fill(comp_start.begin(), comp_start.begin() + nc + 1, 0U);
       for (std::size_t i = 0; i < n_; ++i) ++comp_start[comp[i] + 1];
-      for (std::size_t c = 0; c < n_; ++c) comp_start[c + 1] += comp_start[c];
-      std::copy(comp_start.begin(), comp_start.end() - 1, fill.begin());
+      for (std::size_t c = 0; c < nc; ++c) comp_start[c + 1] += comp_start[c];
+      std::copy(comp_start.begin(), comp_start.begin() + nc, fill.begin());
       for (std::size_t i = 0; i < n_; ++i) members[fill[comp[i]]++] = static_cast<std::uint32_t>(i);
-      roots.clear();
-      for (std::size_t c = 0; c < n_; ++c) {
-        if (comp_start[c + 1] > comp_start[c]) roots.push_back(static_cast<std::uint32_t>(c));
-      }
-      parallel_chunks(roots.size(),
-                      std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)), threads_,
-                      [&](std::size_t b, std::size_t e, std::size_t) {
+      parallel_chunks(nc, std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)),
+                      threads_, [&](std::size_t b, std::size_t e, std::size_t) {
                         for (std::size_t r = b; r < e; ++r) {
-                          const auto c = roots[r];
+                          const auto c = static_cast<std::uint32_t>(r);
                           double bound = comp_w[c];
                           for (auto m = comp_start[c]; m < comp_start[c + 1];) {
                             const std::int32_t k = pure_start_[members[m]];
@@ -516,7 +518,7 @@ class BoruvkaKdTree {
         }
       }
       std::size_t added = 0;
-      for (std::size_t c = 0; c < n_; ++c) {
+      for (std::size_t c = 0; c < nc; ++c) {
         if (comp_w[c] == inf) continue;
         const std::uint32_t qi = comp_q[c];
         const std::uint32_t a = perm_[qi];
