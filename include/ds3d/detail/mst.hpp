@@ -881,11 +881,30 @@ class BoruvkaKdTree {
       lo[j] = std::numeric_limits<double>::infinity();
       hi[j] = -std::numeric_limits<double>::infinity();
     }
-    for (auto i = b; i < e; ++i) {
-      for (std::size_t j = 0; j < dim_; ++j) {
-        const double v = data[order[i] * dim_ + j];
-        lo[j] = std::min(lo[j], v);
-        hi[j] = std::max(hi[j], v);
+    if (dim_ == 3) {  // the loop below with the box in registers (same min/max sequence)
+      double l0 = lo[0], l1 = lo[1], l2 = lo[2], h0 = hi[0], h1 = hi[1], h2 = hi[2];
+      for (auto i = b; i < e; ++i) {
+        const double* v = data + static_cast<std::size_t>(order[i]) * 3;
+        l0 = std::min(l0, v[0]);
+        h0 = std::max(h0, v[0]);
+        l1 = std::min(l1, v[1]);
+        h1 = std::max(h1, v[1]);
+        l2 = std::min(l2, v[2]);
+        h2 = std::max(h2, v[2]);
+      }
+      lo[0] = l0;
+      lo[1] = l1;
+      lo[2] = l2;
+      hi[0] = h0;
+      hi[1] = h1;
+      hi[2] = h2;
+    } else {
+      for (auto i = b; i < e; ++i) {
+        for (std::size_t j = 0; j < dim_; ++j) {
+          const double v = data[order[i] * dim_ + j];
+          lo[j] = std::min(lo[j], v);
+          hi[j] = std::max(hi[j], v);
+        }
       }
     }
     if (e - b <= kLeafSize) return id;
