@@ -216,21 +216,29 @@ void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads
   std::uint32_t* const cnt = r.counts.data();
   const std::uint64_t* const occ_c = occ;
   const std::uint32_t* const rank_c = rank;
+  // Both passes read the points through xyz_block (a plain pointer for contiguous clouds, so the
+  // loops need not reload the cloud's data pointer after every store).
   auto sum_pass = [&](auto has_skip) {
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint32_t k = cell[i];
-      if constexpr (decltype(has_skip)::value) {
-        if (k == kNoKey) continue;
+    alignas(64) float buf[3 * kKeyBlock];
+    for (std::size_t s = 0; s < n; s += kKeyBlock) {
+      const std::size_t len = std::min(n - s, kKeyBlock);
+      const float* xyz = xyz_block(cloud, s, s + len, buf);
+      std::uint32_t* blk = cell + s;
+      for (std::size_t j = 0; j < len; ++j) {
+        const std::uint32_t k = blk[j];
+        if constexpr (decltype(has_skip)::value) {
+          if (k == kNoKey) continue;
+        }
+        const std::uint64_t below = occ_c[k >> 6U] & ((std::uint64_t{1} << (k & 63U)) - 1);
+        const std::uint32_t row =
+            rank_c[k >> 6U] + static_cast<std::uint32_t>(std::popcount(below));
+        blk[j] = row;
+        double* a = acc + 4 * std::size_t{row};
+        a[0] += xyz[3 * j];
+        a[1] += xyz[3 * j + 1];
+        a[2] += xyz[3 * j + 2];
+        ++cnt[row];
       }
-      const std::uint64_t below = occ_c[k >> 6U] & ((std::uint64_t{1} << (k & 63U)) - 1);
-      const std::uint32_t row = rank_c[k >> 6U] + static_cast<std::uint32_t>(std::popcount(below));
-      cell[i] = row;
-      const Eigen::Vector3f p = cloud::point(cloud, i);
-      double* a = acc + 4 * std::size_t{row};
-      a[0] += p.x();
-      a[1] += p.y();
-      a[2] += p.z();
-      ++cnt[row];
     }
   };
   if (skip) {
@@ -246,25 +254,35 @@ void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads
     a[2] *= inv_cnt;
   }
   // Pass 4: representatives: the first member (input order) nearest the mean. Distances are
-  // >= 0, so their bit patterns order like the values: integer compare and conditional moves,
-  // no branch on the unpredictable "is it nearer" (measured ~10 % faster than the branch).
+  // >= 0, so their bit patterns order like the values: an integer compare applied with masks,
+  // no branch on the unpredictable "is it nearer" (g++ 12 compiled `c ? i : rep[row]` into one:
+  // 112k mispredictions per call at 300k points / 0.05 m, 13k with the masks).
   r.representative.resize(voxels);
   std::uint32_t* const rep = r.representative.data();
   ws.best.assign(voxels, std::bit_cast<std::uint64_t>(std::numeric_limits<double>::infinity()));
   std::uint64_t* const best = ws.best.data();
   auto rep_pass = [&](auto has_skip) {
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint32_t row = cell[i];
-      if constexpr (decltype(has_skip)::value) {
-        if (row == kNoKey) continue;
+    alignas(64) float buf[3 * kKeyBlock];
+    for (std::size_t s = 0; s < n; s += kKeyBlock) {
+      const std::size_t len = std::min(n - s, kKeyBlock);
+      const float* xyz = xyz_block(cloud, s, s + len, buf);
+      const std::uint32_t* blk = cell + s;
+      for (std::size_t j = 0; j < len; ++j) {
+        const std::uint32_t row = blk[j];
+        if constexpr (decltype(has_skip)::value) {
+          if (row == kNoKey) continue;
+        }
+        const double* a = acc + 4 * std::size_t{row};
+        const Eigen::Vector3f p(xyz[3 * j], xyz[3 * j + 1], xyz[3 * j + 2]);
+        const auto d = std::bit_cast<std::uint64_t>(member_sq_dist(p, a[0], a[1], a[2]));
+        const std::uint64_t old = best[row];
+        const std::uint32_t old_rep = rep[row];
+        // strict: earlier members win ties
+        const std::uint64_t take = std::uint64_t{0} - static_cast<std::uint64_t>(d < old);
+        best[row] = old ^ ((old ^ d) & take);
+        rep[row] = old_rep ^ ((old_rep ^ static_cast<std::uint32_t>(s + j)) &
+                              static_cast<std::uint32_t>(take));
       }
-      const double* a = acc + 4 * std::size_t{row};
-      const auto d =
-          std::bit_cast<std::uint64_t>(member_sq_dist(cloud::point(cloud, i), a[0], a[1], a[2]));
-      const std::uint64_t old = best[row];
-      const bool better = d < old;  // strict: earlier members win ties
-      best[row] = better ? d : old;
-      rep[row] = better ? static_cast<std::uint32_t>(i) : rep[row];
     }
   };
   if (skip) {
