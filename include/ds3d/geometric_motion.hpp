@@ -46,9 +46,10 @@
 ///     Seeded by it (and by the previous frame's segment where the surface is still there,
 ///     inside a held object), a region grows over the warp grid while the depth stays
 ///     continuous, never onto the floor (the dominant plane under the preprocess floor prior);
-///     a region larger than max_object_size has leaked into static structure and keeps its
-///     seeds only. The segments, with the silhouette band in front of the background, form
-///     DynamicObjects::pixel_mask.
+///     a region wider than max_object_width along the floor, higher than max_object_size above
+///     it, or larger than max_object_size in a camera axis has leaked into static structure and
+///     keeps only this frame's evidence. The segments, with the silhouette band in front of the
+///     background, form DynamicObjects::pixel_mask. About 1.8 ms per frame with objects.
 /// Objects are reported as DynamicObjects::boxes_3d (camera frame), so that the masker can gate
 /// the keypoints by their depth range.
 
