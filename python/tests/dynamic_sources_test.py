@@ -151,3 +151,25 @@ def test_bad_input_errors(detections, tmp_path):
     with pytest.raises(ValueError, match="bogus"):
         ds3d.make_dynamic_source("bogus")
     assert ds3d.make_dynamic_source("none").detect(rgb, None, 0.0, CAM).empty
+
+
+def test_sources_keep_copies_not_views_of_the_frames():
+    # GeometricMotionSource keeps past depth images; overwriting the caller's arrays after each
+    # detect() must not change what it finds (it did when detect() passed numpy views).
+    scene = ds3d.synth.Scene("walking_xyz", frames=8, seed=1)
+    frames = [scene.render(i) for i in range(8)]
+
+    def boxes(scribble):
+        src = ds3d.make_dynamic_source("geometric")
+        out = []
+        for f in frames:
+            rgb, depth = f["rgb"].copy(), f["depth"].copy()
+            out.append(src.detect(rgb, depth, f["timestamp"], CAM).boxes_3d)
+            if scribble:
+                rgb[:] = 7
+                depth[:] = 1234
+        return out
+
+    clean, scribbled = boxes(False), boxes(True)
+    assert sum(len(b) for b in clean) > 0
+    assert all(np.array_equal(a, b) for a, b in zip(clean, scribbled))
