@@ -116,6 +116,8 @@ def test_bad_input_errors(detections, tmp_path):
         ds3d.DynamicObjects(boxes_2d=[[np.nan, 10, 15, 20]])
     with pytest.raises(ValueError, match="boxes_2d must be a \\(K, 4\\)"):
         ds3d.DynamicObjects(boxes_2d=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="boxes_2d must be a \\(K, 4\\)"):
+        ds3d.DynamicObjects(boxes_2d=[["a", "b", "c", "d"]])
     with pytest.raises(ValueError, match="scores"):
         ds3d.DynamicObjects(boxes_2d=[[0, 0, 1, 1]], scores=[0.5, 0.5])
     with pytest.raises(ValueError, match="scores\\[0\\]"):
@@ -132,6 +134,8 @@ def test_bad_input_errors(detections, tmp_path):
     with pytest.raises(ValueError, match="camera must be a dict"):
         src.detect(rgb, None, 1.0, 525.0)
     f = ds3d.OrbExtractor().extract(rgb, None, CAM)
+    with pytest.raises(ValueError, match="keypoint_array: depth is 10x10"):
+        ds3d.keypoint_array(f, np.zeros((10, 10), np.uint16), CAM)
     with pytest.raises(ValueError, match="objects.pixel_mask is 10x10"):
         ds3d.HdbscanMasker().mask(rgb, None, f, ds3d.DynamicObjects(pixel_mask=np.zeros((10, 10), np.uint8)), CAM)
     bad = ds3d.DynamicFilterParams()

@@ -30,9 +30,8 @@ namespace {
 
 // (K, 4) float32 rows x_min y_min x_max y_max -> Rect2f list; NaN / inverted boxes rejected.
 std::vector<cv::Rect2f> rects_from(const char* fn, const py::handle& obj) {
-  const auto a = pu::exact<float>(fn, "boxes_2d", py::array_t<float>::ensure(obj),
-                                  "a (K, 4) float array [x_min y_min x_max y_max]");
-  DS3D_CHECK(a.ndim() == 2 && a.shape(1) == 4, fn,
+  const auto a = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(obj);
+  DS3D_CHECK(a && a.ndim() == 2 && a.shape(1) == 4, fn,
              ": boxes_2d must be a (K, 4) array [x_min y_min x_max y_max] (got ", pu::describe(obj),
              ")");
   std::vector<cv::Rect2f> out;
@@ -301,7 +300,9 @@ void bind_dynamic_sources(py::module_& m) {
         constexpr const char* fn = "ds3d.keypoint_array";
         py::array_t<std::uint16_t, py::array::c_style> keep;
         const cv::Mat d = pu::depth_view(fn, depth, keep);
-        return ds3d::slam::keypoint_array(features, d, pu::camera_from(fn, camera));
+        const auto cam = pu::camera_from(fn, camera);
+        pu::check_size(fn, "depth", d, cam);
+        return ds3d::slam::keypoint_array(features, d, cam);
       },
       py::arg("features"), py::arg("depth"), py::arg("camera"),
       "(N, 3) float32 rows (u, v, z): raw keypoint pixel and the depth [m] of `depth` at the\n"
