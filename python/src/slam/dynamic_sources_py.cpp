@@ -189,7 +189,9 @@ void bind_dynamic_sources(py::module_& m) {
            "(camera['depth_scale'] units per metre, 0 = missing) or None; timestamp [s], finite,\n"
            "non-decreasing; camera: dict (as ds3d.camera_preset), preset name or camera.txt path,\n"
            "of the image size; index: position in the sequence (seeds the htx draw). Returns\n"
-           "ds3d.DynamicObjects; releases the GIL. ValueError for a wrong dtype, shape or size.")
+           "ds3d.DynamicObjects; releases the GIL. The source gets its own copy of the images (it may\n"
+           "keep past frames), so the arrays may be reused afterwards. ValueError for a wrong dtype,\n"
+           "shape or size.")
       .def_property_readonly("name", &DynamicObjectSource::name, "short name, e.g. 'file', 'htx+geometric'");
 
   py::class_<FileSourceParams>(m, "FileSourceParams", "Options of ds3d.FileSource.")
