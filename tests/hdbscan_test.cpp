@@ -454,8 +454,8 @@ TEST(Hdbscan, SameResultForAnyThreadCount) {
 }
 
 TEST(Hdbscan, SmallKnnTreeMatchesBruteForceForAnyThreadCount) {
-  // n <= detail::kSmallKnnMaxPoints uses KnnTreeSmall instead of nanoflann: the leaf-batched
-  // core-distance-only search for Prim, the neighbour-list search for Borůvka. Check both
+  // Prim's core distances come from KnnTreeSmall's leaf-batched search (n <=
+  // detail::kSmallKnnMaxPoints), Borůvka's from the search over its own tree (any n). Check both
   // bitwise against a brute-force (k+1)-th smallest distance, in 2, 3 and 5 dimensions.
   for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
     for (const int dim : {2, 3, 5}) {
@@ -491,9 +491,10 @@ TEST(Hdbscan, SmallKnnTreeMatchesBruteForceForAnyThreadCount) {
 }
 
 TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
-  // The 3-D core-distance search keeps its (k+1)-list in 4-lane registers for k + 1 <= 16 (one to
-  // four registers, padded slots) and in memory above; check every register count, the padding
-  // and the fallback bitwise against brute force on tie-heavy integer-grid data.
+  // Both 3-D core-distance searches (Prim's KnnTreeSmall, Borůvka's own tree) keep their
+  // (k+1)-list in 4-lane registers for k + 1 <= 16 (one to four registers, padded slots) and in
+  // memory above; check every register count, the padding and the fallback bitwise against
+  // brute force on tie-heavy integer-grid data.
   RowMatrixXd x(700, 3);
   std::uint64_t state = 5;
   for (Eigen::Index i = 0; i < x.rows(); ++i) {
@@ -509,17 +510,19 @@ TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
       rows[i][t] = ds3d::detail::sq_dist_seq(x.data() + i * 3, x.data() + t * 3, 3);
     }
   }
-  for (const int k : {1, 3, 4, 5, 8, 10, 11, 12, 15, 16, 21}) {
-    HdbscanParams p;
-    p.min_cluster_size = 5;
-    p.min_samples = k;
-    p.algorithm = MstAlgorithm::kPrims;
-    const auto a = ds3d::hdbscan(x, p);
-    for (std::size_t i = 0; i < n; ++i) {
-      std::vector<double> row = rows[i];
-      std::nth_element(row.begin(), row.begin() + k, row.end());
-      ASSERT_EQ(a.core_distances[i], std::sqrt(row[static_cast<std::size_t>(k)]))
-          << "k " << k << " point " << i;
+  for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
+    for (const int k : {1, 3, 4, 5, 8, 10, 11, 12, 15, 16, 21}) {
+      HdbscanParams p;
+      p.min_cluster_size = 5;
+      p.min_samples = k;
+      p.algorithm = algorithm;
+      const auto a = ds3d::hdbscan(x, p);
+      for (std::size_t i = 0; i < n; ++i) {
+        std::vector<double> row = rows[i];
+        std::nth_element(row.begin(), row.begin() + k, row.end());
+        ASSERT_EQ(a.core_distances[i], std::sqrt(row[static_cast<std::size_t>(k)]))
+            << to_string(algorithm) << " k " << k << " point " << i;
+      }
     }
   }
 }

@@ -6,15 +6,15 @@
 /// reproduces the partitions of the reference Python library `hdbscan` 0.8.43.
 ///
 /// Pipeline (each step names the reference rule it reproduces, see docs/hdbscan.md):
-///  1. core distance κ(i) = distance to the k-th nearest *other* point (nanoflann kNN, k + 1
+///  1. core distance κ(i) = distance to the k-th nearest *other* point (exact KD-tree kNN, k + 1
 ///     neighbours including the point itself; k = min_samples, default min_cluster_size,
 ///     clamped to n - 1);
 ///  2. mutual reachability d_mr(i,j) = max{κ(i), κ(j), d(i,j)} (3DS-SLAM §III-C, Eq. 4);
 ///  3. exact minimum spanning tree of the complete d_mr graph, by
 ///     - Prim on the implicit dense graph: O(n²·D) time, O(n·D) memory (small n), or
-///     - KD-tree Borůvka (McInnes & Healy 2017, §3), seeded by the kNN lists: O(log n) rounds
-///       of pruned KD-tree searches, about O(n log² n) for low-dimensional data in practice,
-///       O(n·(D + k)) memory (large n);
+///     - KD-tree Borůvka (McInnes & Healy 2017, §3; its tree also serves the kNN), seeded from
+///       each point's core ball: O(log n) rounds of pruned KD-tree searches, about
+///       O(n log² n) for low-dimensional data in practice, O(n·D) memory (large n);
 ///  4. single-linkage tree (scipy linkage layout), condensed tree, cluster stability, excess of
 ///     mass (EOM) or leaf selection, cluster_selection_epsilon, allow_single_cluster;
 ///  5. membership probabilities, GLOSH outlier scores (Campello et al. 2015) and persistence.
@@ -49,7 +49,7 @@ enum class ClusterSelection : std::uint8_t {
 enum class MstAlgorithm : std::uint8_t {
   kAuto,     ///< Prim below 3000 points or above 8 dimensions, Borůvka otherwise
   kPrims,    ///< Prim on the implicit dense graph: O(n²·D) time, O(n·D) memory
-  kBoruvka,  ///< KD-tree Borůvka: ~O(n log² n) for low D, O(n·(D + k)) memory
+  kBoruvka,  ///< KD-tree Borůvka: ~O(n log² n) for low D, O(n·D) memory
 };
 
 /// Parameters of hdbscan(); names and defaults follow the reference library.

@@ -449,14 +449,14 @@ inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const Hdbscan
   const bool use_boruvka =
       params.algorithm == MstAlgorithm::kBoruvka ||
       (params.algorithm == MstAlgorithm::kAuto && n >= detail::kBoruvkaMinPoints && dim <= 8);
-  std::vector<std::uint32_t> neighbors;
-  const auto k1 = static_cast<std::size_t>(k) + 1;
-  res.core_distances = detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads,
-                                                  use_boruvka ? &neighbors : nullptr);
-  std::vector<MstEdge> mst =
-      use_boruvka
-          ? detail::boruvka_kdtree(data.data(), n, dim, res.core_distances, neighbors, k1, threads)
-          : detail::prim_dense(data.data(), n, dim, res.core_distances);
+  std::vector<MstEdge> mst;
+  if (use_boruvka) {
+    mst = detail::boruvka_kdtree(data.data(), n, dim, static_cast<std::size_t>(k), threads,
+                                 res.core_distances);
+  } else {
+    res.core_distances = detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads);
+    mst = detail::prim_dense(data.data(), n, dim, res.core_distances);
+  }
   detail::hdbscan_from_mst(res, std::move(mst), params, n);
   return res;
 }

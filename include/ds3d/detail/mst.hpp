@@ -5,6 +5,7 @@
 // d_mr(i,j) = max{core(i), core(j), d(i,j)}. Not API: see ds3d/hdbscan.hpp.
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -431,37 +432,24 @@ inline std::vector<MstEdge> prim_precomputed(const double* dist, std::size_t n,
 // dropped by union-find, which keeps the forest minimal. O(n (D + k)) memory; O(log n) rounds.
 class BoruvkaKdTree {
  public:
-  BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, const std::vector<double>& core,
-                const std::vector<std::uint32_t>& neighbors, std::size_t k1, int num_threads)
+  /// Builds the tree over `data` (n × dim, row-major), computes every point's core distance
+  /// (distance to its k-th nearest other point, 1 <= k < n) and seeds the candidate edges.
+  BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, std::size_t k, int num_threads)
       : n_(n), dim_(dim), threads_(num_threads) {
     perm_.resize(n);
     std::iota(perm_.begin(), perm_.end(), 0U);
     pts_.resize(n * dim);
     core_.resize(n);
-    build(data, core);
-    // Seed candidates from the kNN lists (in tree positions).
-    std::vector<std::uint32_t> pos(n);
-    for (std::size_t i = 0; i < n; ++i) pos[perm_[i]] = static_cast<std::uint32_t>(i);
-    cand_w_.assign(n, std::numeric_limits<double>::infinity());
+    build(data);
+    knn_and_seeds(k + 1);
     lower_ = core_;
-    cand_t_.assign(n, 0U);
-    if (k1 > 0) {
-      for (std::size_t i = 0; i < n; ++i) {
-        const std::uint32_t* nb = neighbors.data() + static_cast<std::size_t>(perm_[i]) * k1;
-        for (std::size_t t = 0; t < k1; ++t) {
-          const std::uint32_t j = pos[nb[t]];
-          if (j == i) continue;
-          const double w = std::max(
-              {core_[i], core_[j],
-               std::sqrt(sq_dist_seq(pts_.data() + i * dim_,
-                                     pts_.data() + static_cast<std::size_t>(j) * dim_, dim_))});
-          if (w < cand_w_[i] || (w == cand_w_[i] && j < cand_t_[i])) {
-            cand_w_[i] = w;
-            cand_t_[i] = j;
-          }
-        }
-      }
-    }
+  }
+
+  /// Core distances by point id.
+  [[nodiscard]] std::vector<double> core_distances() const {
+    std::vector<double> c(n_);
+    for (std::size_t i = 0; i < n_; ++i) c[perm_[i]] = core_[i];
+    return c;
   }
 
   std::vector<MstEdge> run() {
@@ -469,16 +457,23 @@ class BoruvkaKdTree {
     edges.reserve(n_ - 1);
     uf_parent_.resize(n_);
     std::iota(uf_parent_.begin(), uf_parent_.end(), 0U);
-    std::vector<std::uint32_t> comp(n_);  // component (root point id) of each tree position
+    // Components are numbered 0..nc-1 in the order of their root point ids, so the per-component
+    // passes below cost O(nc), not O(n), and edges are emitted in root order as before.
+    std::vector<std::uint32_t> comp(n_);   // component of each tree position
+    std::vector<std::uint32_t> dense(n_);  // root point id -> component
     std::vector<double> comp_w(n_);
     std::vector<std::uint32_t> comp_q(n_);
-    std::vector<std::uint32_t> comp_start(n_ + 1), fill(n_), members(n_), roots;
+    std::vector<std::uint32_t> comp_start(n_ + 1), fill(n_), members(n_);
     const double inf = std::numeric_limits<double>::infinity();
     while (edges.size() + 1 < n_) {
-      for (std::size_t i = 0; i < n_; ++i) comp[i] = find(perm_[i]);
+      std::uint32_t nc = 0;
+      for (std::uint32_t x = 0; x < n_; ++x) {
+        if (uf_parent_[x] == x) dense[x] = nc++;
+      }
+      for (std::size_t i = 0; i < n_; ++i) comp[i] = dense[find(perm_[i])];
       label_nodes(comp);
       // Drop candidates that now point into the own component; component bounds from the rest.
-      std::fill(comp_w.begin(), comp_w.end(), inf);
+      std::fill(comp_w.begin(), comp_w.begin() + nc, inf);
       for (std::size_t i = 0; i < n_; ++i) {
         if (cand_w_[i] < inf && comp[cand_t_[i]] == comp[i]) cand_w_[i] = inf;
         if (cand_w_[i] < comp_w[comp[i]]) {
@@ -490,23 +485,26 @@ class BoruvkaKdTree {
       // Members of each component, contiguous and in tree order (counting sort). Each
       // component is searched by one thread in this fixed order, so its running bound, and
       // hence every result, is the same for any thread count.
-      std::fill(comp_start.begin(), comp_start.end(), 0U);
+      std::fill(comp_start.begin(), comp_start.begin() + nc + 1, 0U);
       for (std::size_t i = 0; i < n_; ++i) ++comp_start[comp[i] + 1];
-      for (std::size_t c = 0; c < n_; ++c) comp_start[c + 1] += comp_start[c];
-      std::copy(comp_start.begin(), comp_start.end() - 1, fill.begin());
+      for (std::size_t c = 0; c < nc; ++c) comp_start[c + 1] += comp_start[c];
+      std::copy(comp_start.begin(), comp_start.begin() + nc, fill.begin());
       for (std::size_t i = 0; i < n_; ++i) members[fill[comp[i]]++] = static_cast<std::uint32_t>(i);
-      roots.clear();
-      for (std::size_t c = 0; c < n_; ++c) {
-        if (comp_start[c + 1] > comp_start[c]) roots.push_back(static_cast<std::uint32_t>(c));
-      }
-      parallel_chunks(roots.size(),
-                      std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)), threads_,
-                      [&](std::size_t b, std::size_t e, std::size_t) {
+      parallel_chunks(nc, std::size_t{64} * static_cast<std::size_t>(std::max(1, threads_)),
+                      threads_, [&](std::size_t b, std::size_t e, std::size_t) {
                         for (std::size_t r = b; r < e; ++r) {
-                          const auto c = roots[r];
+                          const auto c = static_cast<std::uint32_t>(r);
                           double bound = comp_w[c];
-                          for (auto m = comp_start[c]; m < comp_start[c + 1]; ++m) {
-                            query(members[m], bound);
+                          for (auto m = comp_start[c]; m < comp_start[c + 1];) {
+                            const std::int32_t k = pure_start_[members[m]];
+                            if (k >= 0) {
+                              process_node(static_cast<std::size_t>(k), c, bound);
+                              m += nodes_[static_cast<std::size_t>(k)].end -
+                                   nodes_[static_cast<std::size_t>(k)].begin;
+                            } else {
+                              query(members[m], bound);
+                              ++m;
+                            }
                           }
                         }
                       });
@@ -520,7 +518,7 @@ class BoruvkaKdTree {
         }
       }
       std::size_t added = 0;
-      for (std::size_t c = 0; c < n_; ++c) {
+      for (std::size_t c = 0; c < nc; ++c) {
         if (comp_w[c] == inf) continue;
         const std::uint32_t qi = comp_q[c];
         const std::uint32_t a = perm_[qi];
@@ -542,7 +540,8 @@ class BoruvkaKdTree {
     std::uint32_t begin, end;
     std::int32_t left, right;  // -1 for leaves
     double min_core;
-    std::uint32_t comp;  // component of all points, or kMixed
+    std::uint32_t comp;   // component of all points, or kMixed
+    std::int32_t parent;  // -1 for the root
   };
   static constexpr std::uint32_t kMixed = 0xFFFFFFFFU;
   static constexpr std::uint32_t kLeafSize = 16;
@@ -558,20 +557,295 @@ class BoruvkaKdTree {
     return r;
   }
 
-  void build(const double* data, const std::vector<double>& core) {
+  void build(const double* data) {
     nodes_.reserve(2 * (n_ / kLeafSize + 1));
     std::vector<std::uint32_t> order(n_);
     std::iota(order.begin(), order.end(), 0U);
     build_node(data, order, 0, static_cast<std::uint32_t>(n_));
+    stride_ = n_ + kLeafSize;  // zero padding: a block read of kLeafSize lanes never overruns
+    soa_.assign(stride_ * dim_, 0.0);
     for (std::size_t i = 0; i < n_; ++i) {
       perm_[i] = order[i];
-      core_[i] = core[order[i]];
-      for (std::size_t j = 0; j < dim_; ++j) pts_[i * dim_ + j] = data[order[i] * dim_ + j];
+      for (std::size_t j = 0; j < dim_; ++j) {
+        pts_[i * dim_ + j] = data[order[i] * dim_ + j];
+        soa_[j * stride_ + i] = pts_[i * dim_ + j];
+      }
     }
+    for (std::size_t k = 0; k < nodes_.size(); ++k) {
+      if (nodes_[k].left < 0) leaves_.push_back(static_cast<std::uint32_t>(k));
+    }
+  }
+
+  // Squared distances from q to the kLeafSize tree positions from b into buf (lanes past a
+  // node's end read other points or the zero padding; callers mask them), each summed in
+  // dimension order with separate roundings, i.e. bitwise sq_dist_seq. Returns the bit mask of
+  // the lanes with buf[t] < r2 (kLe = false) or buf[t] <= r2 (kLe = true).
+  template <bool kLe>
+  std::uint32_t block_dist2(const double* q, std::size_t b, double r2, double* buf) const {
+#if defined(__AVX2__)
+    if (dim_ == 3) {
+      const double* xs = soa_.data() + b;
+      const double* ys = xs + stride_;
+      const double* zs = ys + stride_;
+      const __m256d qx = _mm256_set1_pd(q[0]);
+      const __m256d qy = _mm256_set1_pd(q[1]);
+      const __m256d qz = _mm256_set1_pd(q[2]);
+      const __m256d w = _mm256_set1_pd(r2);
+      std::uint32_t bits = 0;
+      for (std::uint32_t v = 0; v < kLeafSize; v += 4) {
+        const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(xs + v), qx);
+        const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(ys + v), qy);
+        const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(zs + v), qz);
+        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+        _mm256_storeu_pd(buf + v, d2);
+        const __m256d hit =
+            kLe ? _mm256_cmp_pd(d2, w, _CMP_LE_OQ) : _mm256_cmp_pd(d2, w, _CMP_LT_OQ);
+        bits |= static_cast<std::uint32_t>(_mm256_movemask_pd(hit)) << v;
+      }
+      return bits;
+    }
+#endif
+    {
+      const double* x = soa_.data() + b;
+      const double q0 = q[0];
+      for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+        const double g = x[t] - q0;
+        buf[t] = no_contract(g * g);
+      }
+    }
+    for (std::size_t j = 1; j < dim_; ++j) {
+      const double* x = soa_.data() + j * stride_ + b;
+      const double qj = q[j];
+      for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+        const double g = x[t] - qj;
+        buf[t] += no_contract(g * g);
+      }
+    }
+    std::uint32_t bits = 0;
+    for (std::uint32_t t = 0; t < kLeafSize; ++t) {
+      bits |= static_cast<std::uint32_t>(kLe ? buf[t] <= r2 : buf[t] < r2) << t;
+    }
+    return bits;
+  }
+
+#if defined(__AVX2__)
+  static __m256d no_contract256(__m256d v) {
+#if defined(__FMA__) && defined(__GNUC__)
+    asm("" : "+x"(v));  // keeps the product a separate rounding (no FMA), like no_contract
+#endif
+    return v;
+  }
+#endif
+
+  // Offers the points of node nd to the ascending list bd of the kk smallest squared distances
+  // from q (+inf while not full; worst = bd[kk - 1]). Each hit below worst is merged by
+  // bd[i] = min(bd[i], max(bd[i-1], x)), a branch-free sorted insertion.
+  void knn_scan(const double* q, const Node& nd, std::size_t kk, double* bd, double& worst) const {
+#if defined(__AVX2__)
+    if (dim_ == 3) {
+      if (kk <= 4) return knn_scan_avx2<1>(q, nd, kk, bd, worst);
+      if (kk <= 8) return knn_scan_avx2<2>(q, nd, kk, bd, worst);
+      if (kk <= 12) return knn_scan_avx2<3>(q, nd, kk, bd, worst);
+      if (kk <= 16) return knn_scan_avx2<4>(q, nd, kk, bd, worst);
+    }
+#endif
+    double buf[kLeafSize];
+    for (std::size_t b = nd.begin; b < nd.end; b += kLeafSize) {
+      const auto len = static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - b));
+      std::uint32_t bits = block_dist2<false>(q, b, worst, buf) & ((1U << len) - 1U);
+      while (bits != 0U) {
+        const auto t = static_cast<std::uint32_t>(std::countr_zero(bits));
+        bits &= bits - 1U;
+        const double x = buf[t];
+        if (!(x < worst)) continue;  // cannot lower the kk-th smallest
+        for (std::size_t i = kk - 1; i > 0; --i) bd[i] = std::min(bd[i], std::max(bd[i - 1], x));
+        bd[0] = std::min(bd[0], x);
+        worst = bd[kk - 1];
+      }
+    }
+  }
+
+  // Leaf-first walk for the queries of knn_and_seeds: node `leaf` (holding q) first, then for
+  // each ancestor the other child's subtree, nearest child first inside it. Every subtree whose
+  // box is not accepted by keep(box²) is skipped; visit(node) handles the leaves met.
+  template <class Keep, class Visit>
+  void walk_from_leaf(const double* q, std::uint32_t leaf, Keep&& keep, Visit&& visit) const {
+    visit(nodes_[leaf]);
+    struct Entry {
+      std::uint32_t node;
+      double box2;
+    };
+    Entry stack[128];
+    for (std::uint32_t c = leaf; nodes_[c].parent >= 0;) {
+      const auto p = static_cast<std::uint32_t>(nodes_[c].parent);
+      const Node& pn = nodes_[p];
+      const auto sib =
+          static_cast<std::uint32_t>(pn.left == static_cast<std::int32_t>(c) ? pn.right : pn.left);
+      c = p;
+      int top = 0;
+      stack[top++] = {sib, box_dist2(q, sib)};
+      while (top > 0) {
+        const Entry en = stack[--top];
+        if (!keep(en.box2)) continue;
+        const Node& nd = nodes_[en.node];
+        if (nd.left < 0) {
+          visit(nd);
+          continue;
+        }
+        const auto l = static_cast<std::uint32_t>(nd.left);
+        const auto r = static_cast<std::uint32_t>(nd.right);
+        const Entry el{l, box_dist2(q, l)};
+        const Entry er{r, box_dist2(q, r)};
+        if (el.box2 <= er.box2) {  // nearer child on top
+          if (keep(er.box2)) stack[top++] = er;
+          if (keep(el.box2)) stack[top++] = el;
+        } else {
+          if (keep(el.box2)) stack[top++] = el;
+          if (keep(er.box2)) stack[top++] = er;
+        }
+      }
+    }
+  }
+
+  // Pass 1 of knn_and_seeds for tree position s (in leaf `leaf`): bd receives the kk smallest
+  // squared distances from s, ascending. Every leaf it scans is appended to `seen` once (mark
+  // holds the stamp of the leaf batch that listed it). Boxes are kept while box² <= the current
+  // kk-th value (not <), so the scanned leaves cover the whole core ball, boundary ties included.
+  void knn_query(std::uint32_t s, std::uint32_t leaf, std::size_t kk, double* bd,
+                 std::vector<std::uint32_t>& seen, std::vector<std::uint32_t>& mark,
+                 std::uint32_t stamp) const {
+    const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
+    std::fill(bd, bd + ((kk + 3) & ~std::size_t{3}), std::numeric_limits<double>::infinity());
+    double worst = std::numeric_limits<double>::infinity();
+    walk_from_leaf(
+        q, leaf, [&](double box2) { return box2 <= worst; },
+        [&](const Node& nd) {
+          const auto id = static_cast<std::size_t>(&nd - nodes_.data());
+          if (mark[id] != stamp) {
+            mark[id] = stamp;
+            seen.push_back(static_cast<std::uint32_t>(id));
+          }
+          knn_scan(q, nd, kk, bd, worst);
+        });
+  }
+
+  // Pass 2 of knn_and_seeds: the cheapest (weight, tree position) edge from s to its core ball
+  // (squared radius rs), looked up in `near`, the leaves that pass 1 scanned for s's leaf, in
+  // tree order.
+  void seed_query(std::uint32_t s, const std::uint32_t* near, std::size_t num_near, double rs,
+                  double& best_w, std::uint32_t& best_t) const {
+    const double* q = pts_.data() + static_cast<std::size_t>(s) * dim_;
+    const double cs = core_[s];
+    double buf[kLeafSize];
+    for (std::size_t u = 0; u < num_near; ++u) {
+      const Node& nd = nodes_[near[u]];
+      // `near` is in tree order and no edge of s weighs less than core(s): once that weight is
+      // reached, later leaves can only tie it with larger tree positions.
+      if (best_w == cs && nd.begin >= best_t) break;
+      {
+        // The leaf can only hold a better seed if max{core(s), its min core} is below best_w,
+        // or equal to it with a smaller tree position.
+        const double lb = std::max(cs, nd.min_core);
+        if (!(lb < best_w || (lb == best_w && nd.begin < best_t))) continue;
+        if (box_dist2(q, near[u]) > rs) continue;
+        for (std::size_t bb = nd.begin; bb < nd.end; bb += kLeafSize) {
+          const auto len =
+              static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - bb));
+          std::uint32_t bits = block_dist2<true>(q, bb, rs, buf) & ((1U << len) - 1U);
+          while (bits != 0U) {
+            const auto t =
+                static_cast<std::uint32_t>(bb) + static_cast<std::uint32_t>(std::countr_zero(bits));
+            bits &= bits - 1U;
+            if (t == s) continue;
+            const double w = std::max(cs, core_[t]);
+            if (w < best_w || (w == best_w && t < best_t)) {
+              best_w = w;
+              best_t = t;
+            }
+          }
+        }
+      }
+    }
+  }
+
+#if defined(__AVX2__)
+  // knn_scan with the list held in kB 4-lane registers (4·kB >= kk slots, ascending; bd must
+  // have 4·kB slots). The merge runs on whole registers: bd[i-1] is the list shifted up one lane
+  // (a lane permute plus the top lane of the register below; -inf below slot 0). The same
+  // values as the scalar merge (as KnnTreeSmall::scan_core_avx2).
+  template <int kB>
+  void knn_scan_avx2(const double* q, const Node& nd, std::size_t kk, double* bd,
+                     double& worst) const {
+    __m256d v[kB];
+    for (int j = 0; j < kB; ++j) v[j] = _mm256_loadu_pd(bd + 4 * j);
+    const int wl = static_cast<int>((kk - 1) & 3U);  // lane of slot kk - 1 in v[(kk - 1) / 4]
+    const auto wb = static_cast<int>((kk - 1) / 4);
+    const __m256d neg_inf = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
+    double buf[kLeafSize];
+    for (std::size_t b = nd.begin; b < nd.end; b += kLeafSize) {
+      const auto len = static_cast<std::uint32_t>(std::min<std::size_t>(kLeafSize, nd.end - b));
+      std::uint32_t bits = block_dist2<false>(q, b, worst, buf) & ((1U << len) - 1U);
+      while (bits != 0U) {
+        const auto t = static_cast<std::uint32_t>(std::countr_zero(bits));
+        bits &= bits - 1U;
+        const double x = buf[t];
+        if (!(x < worst)) continue;  // cannot lower the kk-th smallest
+        const __m256d vx = _mm256_set1_pd(x);
+        for (int j = kB - 1; j >= 0; --j) {
+          const __m256d below = j > 0 ? _mm256_permute4x64_pd(v[j - 1], 0xFF) : neg_inf;
+          const __m256d up = _mm256_blend_pd(_mm256_permute4x64_pd(v[j], 0x93), below, 0x1);
+          v[j] = _mm256_min_pd(v[j], _mm256_max_pd(up, vx));
+        }
+        alignas(32) double top[4];
+        _mm256_store_pd(top, v[wb]);
+        worst = top[wl];
+      }
+    }
+    for (int j = 0; j < kB; ++j) _mm256_storeu_pd(bd + 4 * j, v[j]);
+  }
+#endif
+
+  // Core distances and first candidate edges, both exact.
+  // 1. core(s) = sqrt of the kk-th smallest squared distance from s, itself included (the
+  //    distance to its k-th nearest other point), by walk_from_leaf, skipping boxes at or
+  //    beyond the current kk-th value. Box distances are exact lower
+  //    bounds (monotone rounding), so this is bitwise brute force, whatever the tie order.
+  // 2. The seed of s is the cheapest edge to a point of its core ball {t != s: d²(s,t) <= r²},
+  //    r² = that kk-th squared distance. There d(s,t) <= core(s), so the edge weighs
+  //    max{core(s), core(t)}; ties go to the smallest tree position. The ball is the k-nearest
+  //    list unless several points tie at the k-th distance (then it holds all of them, so the
+  //    seed no longer depends on how a kNN search orders ties). When some core(t) <= core(s)
+  //    the seed weighs core(s), a lower bound of every edge of s: it is optimal.
+  // Queries run leaf by leaf, each writing only its own outputs: identical for any thread count.
+  void knn_and_seeds(std::size_t kk) {
+    const double inf = std::numeric_limits<double>::infinity();
+    std::vector<double> r2(n_);
+    std::vector<std::vector<std::uint32_t>> near(leaves_.size());  // leaves scanned per leaf
+    cand_w_.assign(n_, inf);
+    cand_t_.assign(n_, 0U);
+    const std::size_t chunks = std::size_t{16} * static_cast<std::size_t>(std::max(1, threads_));
+    parallel_chunks(
+        leaves_.size(), chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
+          std::vector<double> bd((kk + 3) & ~std::size_t{3});  // slots for knn_scan_avx2
+          std::vector<std::uint32_t> mark(nodes_.size(), 0U);
+          for (std::size_t li = b; li < e; ++li) {
+            const auto leaf = leaves_[li];
+            const Node& ln = nodes_[leaf];
+            auto& seen = near[li];
+            for (auto s = ln.begin; s < ln.end; ++s) {
+              knn_query(s, leaf, kk, bd.data(), seen, mark, static_cast<std::uint32_t>(li + 1));
+              r2[s] = bd[kk - 1];
+              core_[s] = std::sqrt(bd[kk - 1]);
+            }
+            std::sort(seen.begin(), seen.end());  // leaf ids in preorder = tree order
+          }
+        });
     for (std::size_t k = nodes_.size(); k-- > 0;) {
       auto& nd = nodes_[k];
       if (nd.left < 0) {
-        double m = std::numeric_limits<double>::infinity();
+        double m = inf;
         for (auto i = nd.begin; i < nd.end; ++i) m = std::min(m, core_[i]);
         nd.min_core = m;
       } else {
@@ -579,12 +853,26 @@ class BoruvkaKdTree {
                                nodes_[static_cast<std::size_t>(nd.right)].min_core);
       }
     }
+    parallel_chunks(leaves_.size(), chunks, threads_,
+                    [&](std::size_t b, std::size_t e, std::size_t) {
+                      for (std::size_t li = b; li < e; ++li) {
+                        const auto leaf = leaves_[li];
+                        const Node& ln = nodes_[leaf];
+                        for (auto s = ln.begin; s < ln.end; ++s) {
+                          double best_w = inf;
+                          std::uint32_t best_t = 0;
+                          seed_query(s, near[li].data(), near[li].size(), r2[s], best_w, best_t);
+                          cand_w_[s] = best_w;
+                          cand_t_[s] = best_t;
+                        }
+                      }
+                    });
   }
 
   std::int32_t build_node(const double* data, std::vector<std::uint32_t>& order, std::uint32_t b,
                           std::uint32_t e) {
     const auto id = static_cast<std::int32_t>(nodes_.size());
-    nodes_.push_back({b, e, -1, -1, 0.0, kMixed});
+    nodes_.push_back({b, e, -1, -1, 0.0, kMixed, -1});
     lo_.resize(nodes_.size() * dim_);
     hi_.resize(nodes_.size() * dim_);
     double* lo = lo_.data() + static_cast<std::size_t>(id) * dim_;
@@ -593,11 +881,30 @@ class BoruvkaKdTree {
       lo[j] = std::numeric_limits<double>::infinity();
       hi[j] = -std::numeric_limits<double>::infinity();
     }
-    for (auto i = b; i < e; ++i) {
-      for (std::size_t j = 0; j < dim_; ++j) {
-        const double v = data[order[i] * dim_ + j];
-        lo[j] = std::min(lo[j], v);
-        hi[j] = std::max(hi[j], v);
+    if (dim_ == 3) {  // the loop below with the box in registers (same min/max sequence)
+      double l0 = lo[0], l1 = lo[1], l2 = lo[2], h0 = hi[0], h1 = hi[1], h2 = hi[2];
+      for (auto i = b; i < e; ++i) {
+        const double* v = data + static_cast<std::size_t>(order[i]) * 3;
+        l0 = std::min(l0, v[0]);
+        h0 = std::max(h0, v[0]);
+        l1 = std::min(l1, v[1]);
+        h1 = std::max(h1, v[1]);
+        l2 = std::min(l2, v[2]);
+        h2 = std::max(h2, v[2]);
+      }
+      lo[0] = l0;
+      lo[1] = l1;
+      lo[2] = l2;
+      hi[0] = h0;
+      hi[1] = h1;
+      hi[2] = h2;
+    } else {
+      for (auto i = b; i < e; ++i) {
+        for (std::size_t j = 0; j < dim_; ++j) {
+          const double v = data[order[i] * dim_ + j];
+          lo[j] = std::min(lo[j], v);
+          hi[j] = std::max(hi[j], v);
+        }
       }
     }
     if (e - b <= kLeafSize) return id;
@@ -615,9 +922,14 @@ class BoruvkaKdTree {
     const auto r = build_node(data, order, mid, e);
     nodes_[static_cast<std::size_t>(id)].left = l;
     nodes_[static_cast<std::size_t>(id)].right = r;
+    nodes_[static_cast<std::size_t>(l)].parent = id;
+    nodes_[static_cast<std::size_t>(r)].parent = id;
     return id;
   }
 
+  // Marks every node whose points all lie in one component, and records for each tree position
+  // the largest such node with more than one point that starts there (nodes_ is in preorder, so
+  // the first one met is the largest).
   void label_nodes(const std::vector<std::uint32_t>& comp) {
     for (std::size_t k = nodes_.size(); k-- > 0;) {
       auto& nd = nodes_[k];
@@ -632,6 +944,82 @@ class BoruvkaKdTree {
         nd.comp = cl == nodes_[static_cast<std::size_t>(nd.right)].comp ? cl : kMixed;
       }
     }
+    pure_start_.assign(n_, -1);
+    for (std::size_t k = 0; k < nodes_.size(); ++k) {
+      const auto& nd = nodes_[k];
+      if (nd.comp != kMixed && nd.end - nd.begin > 1 && pure_start_[nd.begin] < 0) {
+        pure_start_[nd.begin] = static_cast<std::int32_t>(k);
+      }
+    }
+  }
+
+  // Queries the points of node k (all in component c, in tree order) with the same effect as
+  // calling query() on each of them in turn, but first tries to prove for the whole node at
+  // once that no point of another component can give any of them an edge below `bound`
+  // (far_from_others). Then every query would find nothing, and its only effect, the lower
+  // bound update, is applied directly. Bounds only decrease, so a proof for the node also
+  // holds for each point's own, possibly smaller, bound.
+  void process_node(std::size_t k, std::uint32_t c, double& bound) {
+    const Node& nd = nodes_[k];
+    if (far_from_others(k, c, bound)) {
+      for (auto i = nd.begin; i < nd.end; ++i) {
+        // query()'s early exits, then its "nothing found" update (bound0 = bound here, as the
+        // component bound never exceeds a member's own candidate).
+        if (cand_w_[i] == core_[i] || lower_[i] >= bound || core_[i] >= bound) continue;
+        lower_[i] = std::max(lower_[i], bound);
+      }
+      return;
+    }
+    if (nd.left < 0) {
+      for (auto i = nd.begin; i < nd.end; ++i) query(i, bound);
+      return;
+    }
+    process_node(static_cast<std::size_t>(nd.left), c, bound);
+    process_node(static_cast<std::size_t>(nd.right), c, bound);
+  }
+
+  // Squared distance between the boxes of nodes a and b: a lower bound of every computed
+  // sq_dist_seq between their points, by monotone rounding (as box_dist2).
+  [[nodiscard]] double box_box_dist2(std::size_t a, std::size_t b) const {
+    const double* alo = lo_.data() + a * dim_;
+    const double* ahi = hi_.data() + a * dim_;
+    const double* blo = lo_.data() + b * dim_;
+    const double* bhi = hi_.data() + b * dim_;
+    double s = 0.0;
+    for (std::size_t j = 0; j < dim_; ++j) {
+      const double d = gap(blo[j] - ahi[j], alo[j] - bhi[j]);
+      s += no_contract(d * d);
+    }
+    return s;
+  }
+
+  // True when query() of any point of node k (component c) with a bound <= `bound` provably
+  // accepts no edge: every point of another component is pruned by the same tests query()
+  // applies (κ lower bound >= bound, or squared distance above bound²·(1 + 1e-14)), here taken
+  // for the node's box and its smallest core distance.
+  [[nodiscard]] bool far_from_others(std::size_t k, std::uint32_t c, double bound) const {
+    const double hi2 = bound * bound * (1.0 + 1e-14);
+    const double qcore = nodes_[k].min_core;
+    if (qcore >= bound) return true;
+    std::int32_t stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const auto r = static_cast<std::size_t>(stack[--top]);
+      const Node& nd = nodes_[r];
+      if (nd.comp == c || nd.min_core >= bound) continue;
+      if (box_box_dist2(k, r) > hi2) continue;
+      if (nd.left < 0) {
+        for (auto i = nd.begin; i < nd.end; ++i) {
+          if (comp_[i] == c || core_[i] >= bound) continue;
+          if (box_dist2(pts_.data() + static_cast<std::size_t>(i) * dim_, k) <= hi2) return false;
+        }
+        continue;
+      }
+      stack[top++] = nd.right;
+      stack[top++] = nd.left;
+    }
+    return true;
   }
 
   // Squared distance from q to node k's box: a lower bound of every computed sq_dist_seq to its
@@ -639,6 +1027,27 @@ class BoruvkaKdTree {
   [[nodiscard]] double box_dist2(const double* q, std::size_t k) const {
     const double* lo = lo_.data() + k * dim_;
     const double* hi = hi_.data() + k * dim_;
+    if (dim_ == 3) {  // the loop below with the gaps in one vector (same operations and order)
+#if defined(__AVX2__)
+      const __m256i m3 = _mm256_set_epi64x(0, -1, -1, -1);
+      const __m256d vq = _mm256_maskload_pd(q, m3);
+      const __m256d a = _mm256_sub_pd(_mm256_maskload_pd(lo, m3), vq);
+      const __m256d b = _mm256_sub_pd(vq, _mm256_maskload_pd(hi, m3));
+      const __m256d g = _mm256_max_pd(_mm256_max_pd(a, b), _mm256_setzero_pd());
+      const __m256d g2 = no_contract256(_mm256_mul_pd(g, g));
+      const __m128d g01 = _mm256_castpd256_pd128(g2);
+      double s = 0.0 + _mm_cvtsd_f64(g01);
+      s += _mm_cvtsd_f64(_mm_unpackhi_pd(g01, g01));
+      return s + _mm_cvtsd_f64(_mm256_extractf128_pd(g2, 1));
+#else
+      const double g0 = gap(lo[0] - q[0], q[0] - hi[0]);
+      const double g1 = gap(lo[1] - q[1], q[1] - hi[1]);
+      const double g2 = gap(lo[2] - q[2], q[2] - hi[2]);
+      double s = 0.0 + no_contract(g0 * g0);
+      s += no_contract(g1 * g1);
+      return s + no_contract(g2 * g2);
+#endif
+    }
     double s = 0.0;
     for (std::size_t j = 0; j < dim_; ++j) {
       const double a = lo[j] - q[j];
@@ -733,19 +1142,28 @@ class BoruvkaKdTree {
   std::vector<double> core_;         // core distances in tree order
   std::vector<Node> nodes_;
   std::vector<double> lo_, hi_;
+  std::vector<double> soa_;            // coordinates per dimension: soa_[j * stride_ + position]
+  std::size_t stride_ = 0;             // n_ + kLeafSize (zero padding)
+  std::vector<std::uint32_t> leaves_;  // leaf node ids in tree order
   std::vector<std::uint32_t> uf_parent_;
-  std::vector<double> cand_w_;         // per tree position: best known edge weight
-  std::vector<double> lower_;          // ... and a lower bound of the best edge weight
-  std::vector<std::uint32_t> cand_t_;  // ... and its target (tree position)
+  std::vector<double> cand_w_;            // per tree position: best known edge weight
+  std::vector<double> lower_;             // ... and a lower bound of the best edge weight
+  std::vector<std::uint32_t> cand_t_;     // ... and its target (tree position)
+  std::vector<std::int32_t> pure_start_;  // per tree position: largest one-component node from it
   const std::uint32_t* comp_ = nullptr;
 };
 
+// Core distances (k-th nearest other point, 1 <= k < n) into `core` and the MST by KD-tree
+// Borůvka, sharing one tree.
 inline std::vector<MstEdge> boruvka_kdtree(const double* data, std::size_t n, std::size_t dim,
-                                           const std::vector<double>& core,
-                                           const std::vector<std::uint32_t>& neighbors,
-                                           std::size_t k1, int num_threads) {
-  if (n < 2) return {};
-  BoruvkaKdTree t(data, n, dim, core, neighbors, k1, num_threads);
+                                           std::size_t k, int num_threads,
+                                           std::vector<double>& core) {
+  if (n < 2) {
+    core.assign(n, 0.0);
+    return {};
+  }
+  BoruvkaKdTree t(data, n, dim, k, num_threads);
+  core = t.core_distances();
   return t.run();
 }
 
