@@ -295,6 +295,71 @@ DynamicObjects CompositeSource::detect(const FrameInput& frame, const PinholeCam
   return out;
 }
 
+// ---- MotionGatedSource -------------------------------------------------------------------------
+
+MotionGatedSource::MotionGatedSource(std::shared_ptr<DynamicObjectSource> semantic,
+                                     std::shared_ptr<DynamicObjectSource> motion)
+    : semantic_(std::move(semantic)), motion_(std::move(motion)) {
+  DS3D_CHECK(semantic_ != nullptr && motion_ != nullptr,
+             "ds3d::slam::MotionGatedSource: both sources must be non-null (got semantic ",
+             semantic_ ? "set" : "null", ", motion ", motion_ ? "set" : "null", ")");
+}
+
+std::string MotionGatedSource::name() const { return semantic_->name() + "&" + motion_->name(); }
+
+DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeCamera& camera) {
+  const DynamicObjects sem = semantic_->detect(frame, camera);
+  DynamicObjects out = motion_->detect(frame, camera);
+  const std::vector<ImageBox> moving = image_boxes(out, camera);
+  const cv::Mat& m = out.pixel_mask;
+  const bool has_mask =
+      !m.empty() && m.type() == CV_8UC1 && m.cols == camera.width && m.rows == camera.height;
+  const cv::Rect image(0, 0, camera.width, camera.height);
+  // One semantic box (as the image box image_boxes() makes of it) against the motion evidence.
+  const auto gate = [&](const ImageBox& b) {
+    for (const ImageBox& q : moving) {
+      if (b.x_max < q.x_min || q.x_max < b.x_min || b.y_max < q.y_min || q.y_max < b.y_min) {
+        continue;
+      }
+      if (b.has_depth_range() && q.has_depth_range() &&
+          (b.z_max < q.z_min || q.z_max < b.z_min)) {
+        continue;
+      }
+      return true;
+    }
+    if (!has_mask) return false;
+    const cv::Rect r(cv::Point(static_cast<int>(std::floor(b.x_min)),
+                               static_cast<int>(std::floor(b.y_min))),
+                     cv::Point(static_cast<int>(std::ceil(b.x_max)) + 1,
+                               static_cast<int>(std::ceil(b.y_max)) + 1));
+    const cv::Rect ri = r & image;
+    return ri.area() > 0 && cv::countNonZero(m(ri)) > 0;
+  };
+  last_semantic_ = sem.boxes_2d.size() + sem.boxes_3d.size();
+  last_kept_ = 0;
+  // Scores: one per 2-D box when either source gives them (1 for boxes without).
+  const bool with_scores = !sem.scores.empty() || !out.scores.empty();
+  if (with_scores && out.scores.empty()) out.scores.assign(out.boxes_2d.size(), 1.0F);
+  for (std::size_t i = 0; i < sem.boxes_2d.size(); ++i) {
+    DynamicObjects one;
+    one.boxes_2d.push_back(sem.boxes_2d[i]);
+    const std::vector<ImageBox> ib = image_boxes(one, camera);
+    if (ib.empty() || !gate(ib.front())) continue;
+    out.boxes_2d.push_back(sem.boxes_2d[i]);
+    if (with_scores) out.scores.push_back(sem.scores.empty() ? 1.0F : sem.scores[i]);
+    ++last_kept_;
+  }
+  for (const auto& c : sem.boxes_3d) {
+    DynamicObjects one;
+    one.boxes_3d.push_back(c);
+    const std::vector<ImageBox> ib = image_boxes(one, camera);
+    if (ib.empty() || !gate(ib.front())) continue;
+    out.boxes_3d.push_back(c);
+    ++last_kept_;
+  }
+  return out;
+}
+
 // ---- factory -----------------------------------------------------------------------------------
 
 std::vector<std::filesystem::path> default_weights_candidates() {
@@ -328,7 +393,8 @@ std::filesystem::path find_default_weights() {
 
 std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec,
                                                          const DynamicSourceOptions& options) {
-  constexpr const char* kKnown = "none, geometric, htx, file:PATH or A+B (e.g. htx+geometric)";
+  constexpr const char* kKnown =
+      "none, geometric, htx, file:PATH, A+B (e.g. htx+geometric) or A&B (e.g. htx&geometric)";
   if (spec == "none") return std::make_shared<NoDynamicObjects>();
   if (spec == "geometric") return std::make_shared<GeometricMotionSource>();
   if (spec.rfind("file:", 0) == 0) {
@@ -346,6 +412,17 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
                   "' does not exist or is not a file");
     auto detector = std::make_shared<const SparseDetector>(SparseDetector::load(weights));
     return std::make_shared<HtxSource>(std::move(detector), options.htx);
+  }
+  if (const auto amp = spec.find('&'); amp != std::string::npos) {
+    const std::string a = spec.substr(0, amp);
+    const std::string b = spec.substr(amp + 1);
+    const auto simple = [](const std::string& x) {
+      return x == "geometric" || x == "htx" || (x.rfind("file:", 0) == 0 && x.size() > 5);
+    };
+    DS3D_CHECK(simple(a) && simple(b), "ds3d::slam::make_dynamic_source: '", spec,
+               "' must gate one source by another, neither none (expected ", kKnown, ")");
+    return std::make_shared<MotionGatedSource>(make_dynamic_source(a, options),
+                                               make_dynamic_source(b, options));
   }
   if (const auto plus = spec.find('+'); plus != std::string::npos) {
     const std::string a = spec.substr(0, plus);

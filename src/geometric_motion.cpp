@@ -17,6 +17,8 @@
 
 #include "ds3d/errors.hpp"
 #include "ds3d/hdbscan.hpp"
+#include "ds3d/preprocess.hpp"
+#include "ds3d/ransac_plane.hpp"
 
 namespace ds3d::slam {
 
@@ -52,6 +54,12 @@ void GeometricMotionParams::validate() const {
              warp_chi2, ")");
   DS3D_CHECK(std::isfinite(min_warp_area) && min_warp_area > 0, f,
              ": min_warp_area must be > 0 (got ", min_warp_area, ")");
+  DS3D_CHECK(std::isfinite(max_object_width) && max_object_width > 0, f,
+             ": max_object_width must be > 0 (got ", max_object_width, ")");
+  DS3D_CHECK(std::isfinite(max_speed) && max_speed >= 0, f, ": max_speed must be >= 0 (got ",
+             max_speed, ")");
+  DS3D_CHECK(std::isfinite(min_band_support) && min_band_support > 0 && min_band_support <= 1, f,
+             ": min_band_support must be in (0, 1] (got ", min_band_support, ")");
   DS3D_CHECK(std::isfinite(image_scale) && image_scale > 0 && image_scale <= 1, f,
              ": image_scale must be in (0, 1] (got ", image_scale, ")");
   DS3D_CHECK(std::isfinite(max_depth) && max_depth > 0, f, ": max_depth must be > 0 (got ",
@@ -147,6 +155,241 @@ struct Box3 {
   }
 };
 
+
+// The warp grid of one frame, as GeometricMotionSource::detect builds it: cell c = j·gw + i is
+// the pixel (off + i·s, off + j·s); state 0 = no usable depth (missing, too far, depth edge),
+// >= 1 usable, 3 = moved into empty space; cz its depth [m], cp its camera-frame point.
+struct SegmentGrid {
+  const std::vector<std::uint8_t>& state;
+  const std::vector<Eigen::Vector3f>& cp;
+  const std::vector<Eigen::Vector2d>& rays;  // undistorted normalised ray of each cell
+  int gw, gh, s, off;
+};
+
+struct SegmentCounts {
+  int cells = 0, segments = 0, leaked = 0;
+  bool ground_found = false;
+};
+
+// Object segments (step 6b of GeometricMotionSource::detect). Seeds: the moved-in cells and the
+// candidate keypoints inside the evidence boxes of the objects confirmed this frame (`confirmed`,
+// camera frame, grown by box_margin), and last frame's segment (`prev_world`) carried into this
+// frame where the surface is still there (same depth within the edge threshold) and inside a held
+// object's world box — so a person who stops stays masked while the object is held. Each seed
+// grows over usable cells (8-neighbourhood up to two cells, as the warp components) while the
+// depth stays continuous, never onto the ground: the dominant plane of the grid with the floor
+// prior of preprocess (−y within 30°, camera above it), cells within max(min_depth_residual, 3σ(z))
+// of it. A region whose camera-frame box outgrows max_object_size has leaked into static
+// structure (a wall or furniture it touches): it is dropped and only its seeds are kept. The mask
+// paints each segment cell's s×s block and the pixels within s + warp_window of it that are not
+// behind it (the silhouette band the grid skipped as a depth edge).
+SegmentCounts grow_segments(const GeometricMotionParams& prm, const cv::Mat& depth,
+                            const PinholeCamera& camera, const Eigen::Isometry3d& T_world_cam,
+                            const std::vector<Box3>& confirmed, bool carry,
+                            const std::vector<TestedKeypoint>& tested,
+                            const std::vector<Eigen::Vector3f>& prev_world, const SegmentGrid& g,
+                            cv::Mat* mask, std::vector<Eigen::Vector3f>* segment_world) {
+  SegmentCounts out;
+  const std::size_t nc = g.state.size();
+  const auto sigma0 = [&](double z) { return static_cast<double>(prm.depth_noise) * z * z; };
+  const auto edge_thr = [&](double z) {
+    return std::max<double>(prm.min_depth_residual, 3.0 * std::sqrt(2.0) * sigma0(z));
+  };
+  const auto cell_of = [&](double u, double v) -> std::ptrdiff_t {
+    const auto i = static_cast<int>(std::lround((u - g.off) / g.s));
+    const auto j = static_cast<int>(std::lround((v - g.off) / g.s));
+    if (i < 0 || j < 0 || i >= g.gw || j >= g.gh) return -1;
+    return static_cast<std::ptrdiff_t>(j) * g.gw + i;
+  };
+  // Depth and point of every grid cell with depth (edges included: the region growing's own
+  // continuity test separates objects from what lies behind them), 0 = none.
+  std::vector<float> zall(nc, 0.0F);
+  std::vector<Eigen::Vector3f> pall(nc, Eigen::Vector3f::Zero());
+  const double ds = camera.depth_scale;
+  for (int j = 0; j < g.gh; ++j) {
+    const auto* drow = depth.ptr<std::uint16_t>(g.off + j * g.s);
+    for (int i = 0; i < g.gw; ++i) {
+      const std::uint16_t d = drow[g.off + i * g.s];
+      const double z = d / ds;
+      if (d == 0 || z > prm.max_depth) continue;
+      const auto c = static_cast<std::size_t>(j * g.gw + i);
+      const Eigen::Vector2d& r = g.rays[c];
+      zall[c] = static_cast<float>(z);
+      pall[c] = Eigen::Vector3f(static_cast<float>(r.x() * z), static_cast<float>(r.y() * z),
+                                static_cast<float>(z));
+    }
+  }
+  // 0 = not a seed, 1 = evidence of this frame, 2 = carried from the last frame's segment.
+  std::vector<std::uint8_t> seed(nc, 0);
+  const double m = prm.box_margin;
+  const auto in_confirmed = [&](const Eigen::Vector3f& p) {
+    return std::any_of(confirmed.begin(), confirmed.end(), [&](const Box3& b) {
+      return (p.cast<double>().array() >= b.lo.array() - m).all() &&
+             (p.cast<double>().array() <= b.hi.array() + m).all();
+    });
+  };
+  for (std::size_t c = 0; c < nc; ++c) {
+    if (g.state[c] >= 3 && in_confirmed(g.cp[c])) seed[c] = 1;
+  }
+  for (const TestedKeypoint& t : tested) {
+    if (!t.candidate) continue;
+    const std::ptrdiff_t c = cell_of(t.u, t.v);
+    if (c < 0 || zall[static_cast<std::size_t>(c)] <= 0.0F) continue;
+    const auto cu = static_cast<std::size_t>(c);
+    if (std::abs(zall[cu] - t.z) > edge_thr(t.z) || !in_confirmed(pall[cu])) continue;
+    seed[cu] = 1;
+  }
+  if (carry) {
+    const Eigen::Isometry3d T_cam_world = T_world_cam.inverse();
+    for (const Eigen::Vector3f& w : prev_world) {
+      const Eigen::Vector3d q = T_cam_world * w.cast<double>();
+      if (q.z() < 0.1) continue;
+      const Eigen::Vector2d uv = camera.project(q);
+      const std::ptrdiff_t c = cell_of(uv.x(), uv.y());
+      if (c < 0 || zall[static_cast<std::size_t>(c)] <= 0.0F) continue;
+      const auto cu = static_cast<std::size_t>(c);
+      if (seed[cu] == 0 && std::abs(zall[cu] - q.z()) <= edge_thr(q.z())) seed[cu] = 2;
+    }
+  }
+  if (std::none_of(seed.begin(), seed.end(), [](std::uint8_t x) { return x != 0; })) return out;
+
+  // Ground: the floor prior of preprocess on every other usable cell in both directions.
+  std::vector<std::uint8_t> ground(nc, 0);
+  Eigen::Vector4d floor = Eigen::Vector4d::Zero();  // (n, d), n the unit up vector, when found
+  Eigen::Vector3d e1 = Eigen::Vector3d::UnitX();    // horizontal axes of the floor, when found
+  Eigen::Vector3d e2 = Eigen::Vector3d::UnitZ();
+  {
+    std::vector<Eigen::Vector3f> pts;
+    for (int j = 0; j < g.gh; j += 2) {
+      for (int i = 0; i < g.gw; i += 2) {
+        const auto c = static_cast<std::size_t>(j * g.gw + i);
+        if (zall[c] > 0.0F) pts.push_back(pall[c]);
+      }
+    }
+    RansacPlaneParams rp = PreprocessParams::make_default_ground();
+    rp.distance_threshold = prm.min_depth_residual / 2.0;
+    Points3f cloud(static_cast<Eigen::Index>(pts.size()), 3);
+    for (std::size_t k = 0; k < pts.size(); ++k) cloud.row(static_cast<Eigen::Index>(k)) = pts[k];
+    const RansacPlaneResult pl = ransac_plane(cloud, rp);
+    // A plane carrying a few cells is not the floor (same rule as preprocess's default).
+    if (pl.found && static_cast<double>(pl.inliers.size()) >=
+                        PreprocessParams{}.min_ground_fraction * static_cast<double>(pts.size())) {
+      out.ground_found = true;
+      floor = pl.plane;
+      // Two horizontal axes: the camera's x (or z when x is nearly vertical) made orthogonal to
+      // the floor normal, and their cross product.
+      const Eigen::Vector3d up = pl.plane.head<3>();
+      const Eigen::Vector3d ref =
+          std::abs(up.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitZ();
+      e1 = (ref - up * up.dot(ref)).normalized();
+      e2 = up.cross(e1);
+      const Eigen::Vector3d n = pl.plane.head<3>();
+      for (std::size_t c = 0; c < nc; ++c) {
+        if (zall[c] <= 0.0F) continue;
+        const double dist = std::abs(n.dot(pall[c].cast<double>()) + pl.plane.w());
+        const double z = zall[c];
+        if (dist < std::max<double>(prm.min_depth_residual, 3.0 * sigma0(z))) ground[c] = 1;
+      }
+    }
+  }
+
+  // Region growing from the seeds. label: -1 unvisited, k >= 0 region k, -2 a leaked region.
+  std::vector<int> label(nc, -1);
+  std::vector<std::size_t> stack;
+  std::vector<std::size_t> cells;
+  std::vector<std::uint8_t> keep(nc, 0);
+  const auto continuous = [&](std::size_t a, std::size_t b) {
+    return std::abs(zall[a] - zall[b]) <= edge_thr(std::max(zall[a], zall[b]));
+  };
+  int num_regions = 0;
+  for (std::size_t c0 = 0; c0 < nc; ++c0) {
+    if (seed[c0] == 0 || label[c0] != -1) continue;
+    if (ground[c0] != 0) continue;  // a seed on the floor (a foot's band) grows nothing
+    Box3 box;
+    Eigen::Vector2d hlo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+    Eigen::Vector2d hhi = -hlo;
+    bool leaked = false;
+    bool joined_leak = false;  // touched an earlier leaked region: part of it, not a new one
+    cells.assign(1, c0);
+    label[c0] = num_regions;
+    stack.assign(1, c0);
+    while (!stack.empty() && !leaked) {
+      const std::size_t c = stack.back();
+      stack.pop_back();
+      const Eigen::Vector3d p = pall[c].cast<double>();
+      box.add(p);
+      if (box.size().maxCoeff() > prm.max_object_size) {
+        leaked = true;
+        break;
+      }
+      // With a floor: an object is at most max_object_width wide along the floor (in the
+      // floor's own axes) and max_object_size high. A region that grows wider or higher is
+      // joined to static structure (a wall, a table top, a cupboard).
+      if (out.ground_found) {
+        const Eigen::Vector2d h(e1.dot(p), e2.dot(p));
+        hlo = hlo.cwiseMin(h);
+        hhi = hhi.cwiseMax(h);
+        if ((hhi - hlo).maxCoeff() > prm.max_object_width ||
+            floor.head<3>().dot(p) + floor.w() > prm.max_object_size) {
+          leaked = true;
+          break;
+        }
+      }
+      const int i = static_cast<int>(c % static_cast<std::size_t>(g.gw));
+      const int j = static_cast<int>(c / static_cast<std::size_t>(g.gw));
+      for (int dj = -1; dj <= 1 && !leaked; ++dj) {
+        for (int di = -1; di <= 1; ++di) {
+          const int ii = i + di;
+          const int jj = j + dj;
+          if (ii < 0 || jj < 0 || ii >= g.gw || jj >= g.gh) continue;
+          const auto n = static_cast<std::size_t>(jj * g.gw + ii);
+          if (zall[n] <= 0.0F || ground[n] != 0 || !continuous(c, n)) continue;
+          if (label[n] == -2) {  // touches a region that leaked: so does this one
+            leaked = true;
+            joined_leak = true;
+            break;
+          }
+          if (label[n] != -1) continue;
+          label[n] = num_regions;
+          cells.push_back(n);
+          stack.push_back(n);
+        }
+      }
+    }
+    if (leaked) {
+      out.leaked += joined_leak ? 0 : 1;
+      for (const std::size_t c : cells) {
+        label[c] = -2;
+        if (seed[c] == 1) keep[c] = 1;  // this frame's evidence; a carried seed may be the leak
+      }
+    } else {
+      ++out.segments;
+      for (const std::size_t c : cells) keep[c] = 1;
+    }
+    ++num_regions;
+  }
+
+  // The mask: segment cells and the band of pixels around them that is not behind them.
+  *mask = cv::Mat::zeros(depth.rows, depth.cols, CV_8UC1);
+  const int r = g.s / 2 + 1;
+  for (std::size_t c = 0; c < nc; ++c) {
+    if (keep[c] == 0) continue;
+    ++out.cells;
+    segment_world->push_back((T_world_cam * pall[c].cast<double>()).cast<float>());
+    const int u = g.off + static_cast<int>(c % static_cast<std::size_t>(g.gw)) * g.s;
+    const int v = g.off + static_cast<int>(c / static_cast<std::size_t>(g.gw)) * g.s;
+    const double zmax = zall[c] + edge_thr(zall[c]);
+    for (int y = std::max(0, v - r); y <= std::min(depth.rows - 1, v + r); ++y) {
+      const auto* drow = depth.ptr<std::uint16_t>(y);
+      auto* mrow = mask->ptr<std::uint8_t>(y);
+      for (int x = std::max(0, u - r); x <= std::min(depth.cols - 1, u + r); ++x) {
+        if (mrow[x] != 0 || drow[x] == 0) continue;
+        if (drow[x] / ds <= zmax) mrow[x] = 255;
+      }
+    }
+  }
+  return out;
+}
 }  // namespace
 
 }  // namespace ds3d::slam
@@ -229,6 +472,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   const double kx = static_cast<double>(camera.width) / sw;  // small → full pixel scale
   const double ky = static_cast<double>(camera.height) / sh;
   Past cur;
+  cur.timestamp = frame.timestamp;
   if (sw == camera.width && sh == camera.height) {
     cur.depth_small = frame.depth;  // shared, never written
     cur.features = extractor_.extract(frame.rgb, frame.depth, cs);
@@ -542,6 +786,11 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
     const double per_px = 1.0 / std::max(1, 2 * params_.warp_window);
     const double k_sigma = std::sqrt(params_.warp_chi2);
     const double ds = camera.depth_scale;
+    // Largest recession of a surface between the warp's views [m]: max_speed times their time
+    // apart; 0 (no recession test) when the timestamps do not give a positive interval.
+    const double dt_warp = frame.timestamp - wref->timestamp;
+    const double max_recede =
+        std::isfinite(dt_warp) && dt_warp > 0.0 ? params_.max_speed * dt_warp : 0.0;
     for (int j = 0; j < gh; ++j) {
       const int v = off + j * s;
       const auto* drow = frame.depth.ptr<std::uint16_t>(v);
@@ -576,8 +825,17 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
                                       mxrow[u] - mnrow[u]) / ds;
         const double sig = std::sqrt(sigma0(q.z()) * sigma0(q.z()) + sigma0(zr) * sigma0(zr) +
                                      (slope * sigma_lat) * (slope * sigma_lat));
-        if (zr - q.z() > std::max<double>(params_.min_depth_residual, k_sigma * sig)) {
+        const double thr = std::max<double>(params_.min_depth_residual, k_sigma * sig);
+        const double zr_far = wref->win_max.at<std::uint16_t>(qv, qu) / ds;
+        if (zr - q.z() > thr) {
           state[c] = 3;
+        } else if (max_recede > 0.0 && q.z() - zr_far > thr && q.z() - zr_far <= max_recede + thr) {
+          // Behind every surface the reference saw there, by no more than an object can move
+          // in the time between the views: the surface receded (a person walking away). A
+          // larger step is what an occluder that moved away reveals (disocclusion): no evidence.
+          state[c] = 4;
+        }
+        if (state[c] >= 3) {
           ++stats_.num_moving_pixels;
           moving_pixels_.emplace_back(static_cast<float>(u), static_cast<float>(v));
         }
@@ -591,7 +849,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
     std::vector<std::size_t> stack;
     int num_comp = 0;
     for (std::size_t c0 = 0; c0 < nc; ++c0) {
-      if (state[c0] != 3 || comp[c0] >= 0) continue;
+      if (state[c0] < 3 || comp[c0] >= 0) continue;
       Candidate cand;
       double area = 0;
       int i0 = gw, i1 = -1, j0 = gh, j1 = -1;
@@ -615,7 +873,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
             const int jj = j + dj;
             if (ii < 0 || jj < 0 || ii >= gw || jj >= gh) continue;
             const auto n = static_cast<std::size_t>(jj * gw + ii);
-            if (state[n] != 3 || comp[n] >= 0 || !continuous(c, n)) continue;
+            if (state[n] < 3 || comp[n] >= 0 || !continuous(c, n)) continue;
             comp[n] = num_comp;
             stack.push_back(n);
           }
@@ -634,10 +892,39 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
           const auto c = static_cast<std::size_t>(j * gw + i);
           if (state[c] < 2 || cz[c] < z0 - dz || cz[c] > z1 + dz) continue;
           ++in_region;
-          moved += state[c] == 3 ? 1 : 0;
+          moved += state[c] >= 3 ? 1 : 0;
         }
       }
-      if (moved < params_.min_support * in_region) continue;
+      // A mover seen against its own body (a band at its leading or trailing edge, where the
+      // rest of the body in the rectangle is consistent) fails that test; its band is solid
+      // though, while flags from pose errors along static edges form lines one or two cells
+      // wide. So a component also passes when most tested cells of its footprint (the cells
+      // within one cell of it) moved.
+      int foot = 0;
+      int foot_moved = 0;
+      const int id = num_comp - 1;
+      for (int j = std::max(0, j0 - 1); j <= std::min(gh - 1, j1 + 1); ++j) {
+        for (int i = std::max(0, i0 - 1); i <= std::min(gw - 1, i1 + 1); ++i) {
+          const auto c = static_cast<std::size_t>(j * gw + i);
+          if (state[c] < 2) continue;
+          bool near = false;
+          for (int dj = -1; dj <= 1 && !near; ++dj) {
+            for (int di = -1; di <= 1 && !near; ++di) {
+              const int ii = i + di;
+              const int jj = j + dj;
+              near = ii >= 0 && jj >= 0 && ii < gw && jj < gh &&
+                     comp[static_cast<std::size_t>(jj * gw + ii)] == id;
+            }
+          }
+          if (!near) continue;
+          ++foot;
+          foot_moved += state[c] >= 3 ? 1 : 0;
+        }
+      }
+      if (moved < params_.min_support * in_region &&
+          foot_moved < params_.min_band_support * foot) {
+        continue;
+      }
       ++stats_.num_warp_candidates;
       found.push_back(std::move(cand));
     }
@@ -676,6 +963,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
     return w;
   };
   std::vector<Held> candidates_now;
+  std::vector<Box3> confirmed;  // camera-frame evidence boxes of the objects confirmed now
   for (const Candidate& cand : found) {
     Held obj;
     const Box3 ev = world_box(cand.box, &obj.corners_world);
@@ -696,6 +984,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
     // A new sighting replaces the held objects it overlaps: the object moved there.
     std::erase_if(held_, [&](const Held& x) { return x.last_seen != now && confirms(x); });
     held_.push_back(obj);
+    confirmed.push_back(cand.box);
     ++stats_.num_new_objects;
   }
   candidates_ = std::move(candidates_now);
@@ -703,6 +992,23 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
     return now - x.last_seen > static_cast<std::size_t>(params_.hold_frames);
   });
   stats_.T_world_cam = cur.T_world_cam;
+
+  // 6b. Object segments: each object's evidence covers only what moved into empty space (the
+  //     leading band of a walker) and its matched keypoints; grow it over the depth-continuous
+  //     surface it lies on, as a pixel mask.
+  std::vector<Eigen::Vector3f> segment_world;
+  if (params_.segment_objects && cur.pose_valid && !state.empty() &&
+      (!confirmed.empty() || (!held_.empty() && !segment_world_.empty()))) {
+    const SegmentGrid g{state, cp, grid_rays_, gw, gh, s, off};
+    const SegmentCounts sc =
+        grow_segments(params_, frame.depth, camera, cur.T_world_cam, confirmed, !held_.empty(),
+                      tested_, segment_world_, g, &out.pixel_mask, &segment_world);
+    stats_.num_segment_cells = sc.cells;
+    stats_.num_segments = sc.segments;
+    stats_.num_segments_leaked = sc.leaked;
+    stats_.ground_found = sc.ground_found;
+  }
+  segment_world_ = std::move(segment_world);
   // 7. Report held objects in the current camera frame; without a trusted pose their place in
   //    this frame is unknown, so nothing is reported (the masker carries the last regions).
   if (cur.pose_valid) {

@@ -191,6 +191,35 @@ class CompositeSource final : public DynamicObjectSource {
   std::shared_ptr<DynamicObjectSource> second_;
 };
 
+/// A semantic source gated by a motion source (`htx&geometric`): both run on the whole frame;
+/// a semantic object (2-D or 3-D box) is kept only where the motion source found something moving
+/// in this frame: its image rectangle overlaps one of the motion source's image boxes (and, when
+/// both carry a depth range, the depth ranges overlap) or contains pixels of its pixel mask. The
+/// result is the motion source's objects plus the kept semantic boxes, which extend a mover's
+/// evidence to the whole detected person. A detector that also boxes static furniture (the
+/// synthetic-only HTx weights on real chairs and desks, models/README.md) then removes nothing on
+/// a static scene, where `htx` alone removes the furniture's features and hurts tracking.
+/// @note Deterministic when both sources are. Not thread-safe (the sources keep state).
+class MotionGatedSource final : public DynamicObjectSource {
+ public:
+  /// @throws ds3d::InvalidArgument when a source is null.
+  MotionGatedSource(std::shared_ptr<DynamicObjectSource> semantic,
+                    std::shared_ptr<DynamicObjectSource> motion);
+  DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
+  /// "<semantic>&<motion>", e.g. "htx&geometric".
+  [[nodiscard]] std::string name() const override;
+  /// Semantic boxes (2-D and 3-D) of the last detect() call, before the gate.
+  [[nodiscard]] std::size_t last_semantic() const noexcept { return last_semantic_; }
+  /// Semantic boxes of the last detect() call that the gate kept.
+  [[nodiscard]] std::size_t last_kept() const noexcept { return last_kept_; }
+
+ private:
+  std::shared_ptr<DynamicObjectSource> semantic_;
+  std::shared_ptr<DynamicObjectSource> motion_;
+  std::size_t last_semantic_ = 0;
+  std::size_t last_kept_ = 0;
+};
+
 /// Where the default HTx weights are looked for, in order: `<source tree>/models/NAME` (the
 /// compile-time DS3D_SOURCE_DIR), `<install prefix>/share/ds3d/models/NAME` (configure-time
 /// prefix), and `<directory of the running executable>/../share/ds3d/models/NAME` (a relocated
@@ -210,8 +239,9 @@ struct DynamicSourceOptions {
 
 /// Builds the source named by a `--dynamic` option value: "none", "file:PATH", "geometric"
 /// (GeometricMotionSource with default parameters), "htx" (HtxSource, weights from `options`),
-/// or "A+B" with A and B any of these but none (CompositeSource: A, then B), e.g.
-/// "htx+geometric". A "file:" spec takes the rest of the string as its path.
+/// "A+B" with A and B any of these but none (CompositeSource: A, then B), e.g.
+/// "htx+geometric", or "A&B" (MotionGatedSource: A's boxes only where B sees motion), e.g.
+/// "htx&geometric". A "file:" spec takes the rest of the string as its path.
 /// @throws ds3d::InvalidArgument for an unknown name or bad options; ds3d::IoError for an
 ///   unreadable file or weights file (naming the path).
 [[nodiscard]] std::shared_ptr<DynamicObjectSource> make_dynamic_source(

@@ -40,7 +40,15 @@
 ///  6. a candidate becomes an object only when it repeats at the same world place (overlapping
 ///     world boxes) in consecutive frames, or confirms a held object;
 ///  7. an object is reported for `hold_frames` frames after its last motion evidence, so that a
-///     person who stops for a while after moving is still removed.
+///     person who stops for a while after moving is still removed;
+///  8. object segments (`segment_objects`): the evidence of an object covers only what moved
+///     into empty space and its matched keypoints, often a band at a walker's leading edge.
+///     Seeded by it (and by the previous frame's segment where the surface is still there,
+///     inside a held object), a region grows over the warp grid while the depth stays
+///     continuous, never onto the floor (the dominant plane under the preprocess floor prior);
+///     a region larger than max_object_size has leaked into static structure and keeps its
+///     seeds only. The segments, with the silhouette band in front of the background, form
+///     DynamicObjects::pixel_mask.
 /// Objects are reported as DynamicObjects::boxes_3d (camera frame), so that the masker can gate
 /// the keypoints by their depth range.
 
@@ -84,6 +92,11 @@ struct GeometricMotionParams {
   int warp_window = 3;  ///< half-size of the depth-edge / min-depth window of the warp [px], >= 0
   double warp_chi2 = 10.83;     ///< χ²(1 dof, 99.9%) of the warp's depth test, > 0
   double min_warp_area = 0.01;  ///< smallest warp candidate (metric area of its pixels) [m²], > 0
+  /// Fastest object motion the warp explains as a receding surface [m/s], >= 0 (0 = off): a
+  /// pixel behind the reference surface by more than its noise but less than max_speed · Δt
+  /// (Δt from the frame timestamps) receded, as a person walking away from the camera; a larger
+  /// step is a disocclusion and no evidence. 2 m/s is a brisk walk; running people need more.
+  double max_speed = 2.0;
   /// The source's ORB runs on the image resized by this factor, in (0, 1]. 0.5 (a quarter of
   /// the pixels) cuts the source's instructions by a third, but finds fewer moving keypoints:
   /// Bonn crowd ATE 0.0228 m against 0.0209 m at 1 (docs/dynamic.md).
@@ -92,10 +105,21 @@ struct GeometricMotionParams {
   int min_cluster_size = 6;       ///< HDBSCAN min_cluster_size (moving keypoints), >= 2
   int min_samples = 3;            ///< HDBSCAN min_samples, >= 1
   double min_support = 0.5;       ///< moving / tested keypoints in a cluster's region, in (0, 1]
+  /// Warp components also pass the support test when this share of the tested cells within one
+  /// cell of the component moved (a solid band on a mover's body; pose-error flags along static
+  /// edges are lines, ≤ 1/3 to 1/2), in (0, 1].
+  double min_band_support = 0.7;
   double max_object_size =
       2.2;                   ///< clusters larger than this in x, y or z are not objects [m], > 0
+  /// Widest object segment along the floor [m], > 0: a walking person with swinging arms
+  /// (shoulders about 0.5 m, a stride up to 1 m). A segment growing wider, or higher than
+  /// max_object_size above the floor, has joined a wall or furniture and keeps its seeds only.
+  double max_object_width = 1.2;
   float box_margin = 0.15F;  ///< object boxes grow by this in x, y and z [m], >= 0
   int hold_frames = 90;      ///< frames an object is kept after its last motion, >= 0
+  /// Grow each object over the depth-continuous surface around its evidence (step 6 of the file
+  /// comment) and report it as DynamicObjects::pixel_mask. Off: boxes of the evidence only.
+  bool segment_objects = true;
   void validate() const;     ///< throws ds3d::InvalidArgument naming the bad field
 };
 
@@ -112,6 +136,10 @@ struct GeometricMotionStats {
   int num_candidates = 0;        ///< clusters that passed the size and support tests
   int num_new_objects = 0;       ///< candidates confirmed this frame
   int num_objects = 0;           ///< objects reported (new + held)
+  int num_segments = 0;          ///< grown object segments in the pixel mask
+  int num_segments_leaked = 0;   ///< regions that outgrew the object size (seeds kept only)
+  int num_segment_cells = 0;     ///< warp grid cells in the pixel mask
+  bool ground_found = false;     ///< a floor plane bounded the segments
   double pixel_sigma = 0;        ///< σ_px used this frame [px]
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< the source's own pose
 };
@@ -160,6 +188,7 @@ class GeometricMotionSource final : public DynamicObjectSource {
     cv::Mat win_max;       // CV_16UC1, windowed maximum of the depth
     Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
     bool pose_valid = false;  // T_world_cam is chained from trusted poses
+    double timestamp = 0;     // [s]
   };
   struct Held {
     Eigen::Matrix<double, 8, 3> corners_world;  // the reported box (evidence + box_margin)
@@ -178,6 +207,7 @@ class GeometricMotionSource final : public DynamicObjectSource {
   GeometricMotionStats stats_;
   std::vector<TestedKeypoint> tested_;
   std::vector<Eigen::Vector2f> moving_pixels_;
+  std::vector<Eigen::Vector3f> segment_world_;  // last frame's segment cells (world frame)
 };
 
 }  // namespace ds3d::slam

@@ -20,7 +20,8 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
         threaded: run the pipeline stages in threads (same result either way).
         config: a ``ds3d.SlamConfig`` (its camera is replaced by the dataset's).
         dynamic: source of moving objects, as ``ds3d-slam --dynamic``: ``"none"``,
-            ``"geometric"``, ``"htx"``, ``"file:PATH"`` or ``"A+B"`` (e.g. ``"htx+geometric"``);
+            ``"geometric"``, ``"htx"``, ``"file:PATH"``, ``"A+B"`` (e.g. ``"htx+geometric"``) or
+            ``"A&B"`` (A's boxes only where B sees motion, e.g. ``"htx&geometric"``);
             any other than none filters keypoints with the box-gated HDBSCAN filter.
         weights: HTx weights file for ``htx`` (None: models/htx_lite_fast.safetensors of the
             source tree, else <prefix>/share/ds3d/models/).

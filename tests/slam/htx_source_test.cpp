@@ -354,6 +354,65 @@ TEST(CompositeSource, SecondSourceSeesTheFrameWithoutTheFirstsObjects) {
   EXPECT_THROW(ds3d::slam::CompositeSource(a, nullptr), ds3d::InvalidArgument);
 }
 
+// The gate keeps a semantic box only where the motion source found something in the frame:
+// overlapping image rectangles with overlapping depth ranges, or pixels of its mask.
+TEST(MotionGatedSource, KeepsSemanticBoxesOnlyWhereSomethingMoves) {
+  struct Fixed final : ds3d::slam::DynamicObjectSource {
+    DynamicObjects out;
+    int calls = 0;
+    DynamicObjects detect(const FrameInput&, const ds3d::PinholeCamera&) override {
+      ++calls;
+      return out;
+    }
+    [[nodiscard]] std::string name() const override { return "fixed"; }
+  };
+  // A 0.4 m cube centred at (x, 0, z) in the camera frame.
+  const auto cube = [](float x, float z) {
+    Eigen::Matrix<float, 8, 3> c;
+    for (int k = 0; k < 8; ++k) {
+      c.row(k) << x + ((k & 1) != 0 ? 0.2F : -0.2F), (k & 2) != 0 ? 0.2F : -0.2F,
+          z + ((k & 4) != 0 ? 0.2F : -0.2F);
+    }
+    return c;
+  };
+  ds3d::PinholeCamera cam;  // 640 x 480
+  auto sem = std::make_shared<Fixed>();
+  sem->out.boxes_3d = {cube(-1.0F, 3.0F), cube(0.0F, 3.0F), cube(1.0F, 3.0F)};
+  sem->out.boxes_2d.emplace_back(10.0F, 10.0F, 40.0F, 40.0F);  // top-left corner of the image
+  sem->out.scores.push_back(0.9F);
+  auto mot = std::make_shared<Fixed>();
+  ds3d::slam::MotionGatedSource gated(sem, mot);
+  EXPECT_EQ(gated.name(), "fixed&fixed");
+  FrameInput f;
+  f.depth = cv::Mat(480, 640, CV_16UC1, cv::Scalar(10000));
+  // Nothing moves: nothing is reported, the semantic source still ran.
+  DynamicObjects o = gated.detect(f, cam);
+  EXPECT_TRUE(o.boxes_3d.empty());
+  EXPECT_TRUE(o.boxes_2d.empty());
+  EXPECT_EQ(gated.last_semantic(), 4U);
+  EXPECT_EQ(gated.last_kept(), 0U);
+  EXPECT_EQ(sem->calls, 1);
+  // Motion at the middle cube's place (same depth) and in front of the right one (1 m nearer,
+  // same image place): only the middle cube is kept, with the motion box.
+  mot->out.boxes_3d = {cube(0.05F, 3.0F), cube(0.66F, 2.0F)};
+  o = gated.detect(f, cam);
+  ASSERT_EQ(o.boxes_3d.size(), 3U);
+  EXPECT_EQ(gated.last_kept(), 1U);
+  EXPECT_TRUE(o.boxes_3d[2].isApprox(cube(0.0F, 3.0F)));
+  EXPECT_TRUE(o.boxes_2d.empty());
+  // A mask pixel inside the 2-D box keeps it, with its score.
+  mot->out.boxes_3d.clear();
+  mot->out.pixel_mask = cv::Mat::zeros(480, 640, CV_8UC1);
+  mot->out.pixel_mask.at<std::uint8_t>(30, 25) = 255;
+  o = gated.detect(f, cam);
+  ASSERT_EQ(o.boxes_2d.size(), 1U);
+  ASSERT_EQ(o.scores.size(), 1U);
+  EXPECT_FLOAT_EQ(o.scores[0], 0.9F);
+  EXPECT_TRUE(o.boxes_3d.empty());
+  EXPECT_EQ(cv::countNonZero(o.pixel_mask), 1);
+  EXPECT_THROW(ds3d::slam::MotionGatedSource(sem, nullptr), ds3d::InvalidArgument);
+}
+
 TEST(DynamicSources, MakeHtxAndCompositeFromSpec) {
   ds3d::slam::DynamicSourceOptions opt;
   opt.weights = fixture_weights();
@@ -363,6 +422,9 @@ TEST(DynamicSources, MakeHtxAndCompositeFromSpec) {
   ASSERT_NE(dynamic_cast<HtxSource*>(htx.get()), nullptr);
   EXPECT_EQ(dynamic_cast<HtxSource*>(htx.get())->params().detect_every, 2);
   EXPECT_EQ(ds3d::slam::make_dynamic_source("htx+geometric", opt)->name(), "htx+geometric");
+  EXPECT_EQ(ds3d::slam::make_dynamic_source("htx&geometric", opt)->name(), "htx&geometric");
+  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx&none", opt), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx&", opt), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx+bogus", opt), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::slam::make_dynamic_source("none+htx", opt), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx+", opt), ds3d::InvalidArgument);

@@ -218,8 +218,8 @@ def evaluate_synthetic(det, ds, deploy_threshold, log=None):
             n += int(sel.sum())
             hit25 += int(matched(d, g, 0.25)[sel].sum())
             hitall += int(matched(dall, g, 0.25)[sel].sum())
-        out[f"recall25_{name}"] = hit25 / n if n else float("nan")
-        out[f"recall25_any_score_{name}"] = hitall / n if n else float("nan")
+        out[f"recall25_{name}"] = hit25 / n if n else None  # no box of this kind: undefined
+        out[f"recall25_any_score_{name}"] = hitall / n if n else None
         out[f"n_{name}"] = n
     fp = sum(int((~_tp_mask(d, g, 0.25)).sum()) for d, g in zip(kept, gts))
     out["false_positives_per_frame"] = fp / max(len(ds), 1)
@@ -292,6 +292,17 @@ def box_rects(boxes, R, camera, width, height):
     return out
 
 
+def _no_nan(x):
+    """`x` with every non-finite float replaced by None (JSON null): reports never carry NaN."""
+    if isinstance(x, dict):
+        return {k: _no_nan(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_no_nan(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
 def _read_png16(path):
     from PIL import Image
     return np.asarray(Image.open(path)).astype(np.uint16)
@@ -299,7 +310,9 @@ def _read_png16(path):
 
 def evaluate_tum_masks(det, folder, camera_preset="tum3"):
     """Share of masked person pixels inside predicted boxes on frames with depth and a mask
-    (DynaSLAM's mask images from its repository: value 0 marks a person, 1 the static scene)."""
+    (DynaSLAM's mask images from its repository: value 0 marks a person, 1 the static scene).
+    A share whose denominator is empty (no masked pixel, no masked pixel with depth, no box) is
+    None (JSON null), never NaN."""
     import ds3d
     from PIL import Image
 
@@ -331,9 +344,9 @@ def evaluate_tum_masks(det, folder, camera_preset="tum3"):
             in3d |= points_in_box(pu, b[:7], enlarge=0.2)
         rows.append({"frame": dp.name, "mask_pixels": int(mask.sum()), "boxes": len(boxes),
                      "scores": [round(float(s), 3) for s in boxes[:, 7]],
-                     "share_mask_in_projected_boxes": float(inside2d[mask].mean()) if mask.any() else float("nan"),
-                     "share_mask_points_in_boxes_3d": float(in3d.mean()) if len(in3d) else float("nan"),
-                     "share_box_area_on_mask": float(mask[inside2d].mean()) if inside2d.any() else float("nan")})
+                     "share_mask_in_projected_boxes": float(inside2d[mask].mean()) if mask.any() else None,
+                     "share_mask_points_in_boxes_3d": float(in3d.mean()) if len(in3d) else None,
+                     "share_box_area_on_mask": float(mask[inside2d].mean()) if inside2d.any() else None})
     return rows
 
 
@@ -411,7 +424,7 @@ def main(argv=None):
     else:
         res = draw_overlays(det, a.data, a.out, [int(x) for x in a.frames.split(",") if x.strip()])
     res = {"mode": a.mode, "backend": det.backend, "model": str(a.model), "result": res}
-    text = json.dumps(res, indent=1)
+    text = json.dumps(_no_nan(res), indent=1, allow_nan=False)
     print(text)
     if a.json:
         pathlib.Path(a.json).write_text(text)
