@@ -3,8 +3,8 @@
 // Per-frame cost of GeometricMotionSource::detect (include/ds3d/geometric_motion.hpp) on a
 // generated walking sequence (ds3d::synth walking_xyz, 640x480, two walkers, 30 frames): one
 // iteration runs a fresh source over the whole sequence, so items/s is frames/s including the
-// first frames (no reference yet); per-frame CPU = CPU time / 30. Arg: image_scale x 100 (100 = default, 50 = ORB on a quarter
-// of the pixels).
+// first frames (no reference yet); per-frame CPU = CPU time / 30. Args: image_scale x 100 (100 = default, 50 = ORB on a quarter
+// of the pixels), segment_objects (1 = default: grow the pixel mask, 0 = boxes only).
 #include <benchmark/benchmark.h>
 
 #include <opencv2/core/utility.hpp>
@@ -32,6 +32,7 @@ void BM_GeometricMotionDetect(benchmark::State& state) {
   const ds3d::PinholeCamera cam = ds3d::synth::SynthOptions{}.camera;
   ds3d::slam::GeometricMotionParams p;
   p.image_scale = static_cast<double>(state.range(0)) / 100.0;
+  p.segment_objects = state.range(1) != 0;
   std::size_t frames_with_objects = 0;
   std::int64_t moving_keypoints = 0;
   for (auto _ : state) {
@@ -55,6 +56,11 @@ void BM_GeometricMotionDetect(benchmark::State& state) {
   state.counters["moving_kp_per_frame"] = static_cast<double>(moving_keypoints) / static_cast<double>(n);
   state.SetItemsProcessed(state.iterations() * n);
 }
-BENCHMARK(BM_GeometricMotionDetect)->Arg(100)->Arg(50)->Unit(benchmark::kMillisecond)->Iterations(2);
+BENCHMARK(BM_GeometricMotionDetect)
+    ->Args({100, 1})
+    ->Args({100, 0})
+    ->Args({50, 1})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(2);
 
 }  // namespace

@@ -28,7 +28,7 @@ def run(scenario, frames, **params):
 
 
 def test_walkers_are_found_where_the_generator_put_them():
-    found, dyn_hits, dyn_total, ratios = 0, 0, 0, []
+    found, dyn_hits, dyn_total, ratios, masks = 0, 0, 0, [], 0
     for f, o, src in run("walking_xyz", 12):
         s = src.last_stats
         assert o.boxes_3d.shape[1:] == (8, 3) and np.all(np.isfinite(o.boxes_3d))
@@ -55,7 +55,15 @@ def test_walkers_are_found_where_the_generator_put_them():
         assert (cov & dm).any(), f"frame {f['index']}: no box on a walker"
         ratios.append((cov & dm).sum() / cov.sum() / dm.mean())
         found += 1
-    assert found == 9
+        # segment_objects (default): the grown segments lie on the walkers and cover most of them.
+        pm = o.pixel_mask
+        assert pm is not None and pm.shape == dm.shape and pm.dtype == np.uint8
+        pm = pm > 0
+        assert (pm & dm).sum() > 0.9 * pm.sum(), f"frame {f['index']}: mask off the walkers"
+        assert (pm & dm).sum() > 0.5 * dm.sum(), f"frame {f['index']}: mask misses the walkers"
+        assert src.last_stats.num_segments >= 1 and src.last_stats.num_segment_cells > 0
+        masks += 1
+    assert found == 9 and masks == 9
     # The boxes sit on the walkers: typically at least twice as much of their area is dynamic as
     # of the whole image (a frame may report an over-wide box: no per-frame bound).
     assert np.median(ratios) > 2
@@ -67,6 +75,8 @@ def test_static_scene_reports_nothing_and_is_deterministic():
         assert o.empty, f"frame {f['index']}: {src.last_stats}"
         if f["index"] >= 2:
             assert src.last_stats.pose_ok
+    boxes_only = [o for _, o, _ in run("walking_xyz", 5, segment_objects=False)]
+    assert all(o.pixel_mask is None for o in boxes_only) and len(boxes_only[-1].boxes_3d) > 0
     a = [o.boxes_3d for _, o, _ in run("walking_xyz", 5)]
     b = [o.boxes_3d for _, o, _ in run("walking_xyz", 5)]
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
@@ -74,7 +84,8 @@ def test_static_scene_reports_nothing_and_is_deterministic():
 
 def test_params_stats_and_errors():
     p = ds3d.GeometricMotionParams()
-    assert "num_features=800" in repr(p) and "hold_frames=" in repr(p)
+    assert "num_features=800" in repr(p) and "segment_objects=true" in repr(p)
+    assert p.segment_objects is True and p.max_object_width == pytest.approx(1.2)
     src = ds3d.GeometricMotionSource(p)
     assert src.name == "geometric" and src.params.num_features == 800
     assert src.last_tested.shape == (0,) and src.last_moving_pixels.shape == (0, 2)
@@ -87,7 +98,8 @@ def test_params_stats_and_errors():
         src.detect(rgb, None, 0.1, dict(CAM, height=240))
     for field, value in (("num_features", 0), ("reference_gap", 0), ("match_ratio", 1.5),
                          ("min_pose_inliers", 3), ("image_scale", 0.0), ("min_support", 0.0),
-                         ("moving_chi2", float("nan"))):
+                         ("moving_chi2", float("nan")), ("max_speed", -1.0),
+                         ("min_band_support", 0.0), ("max_object_width", 0.0)):
         q = ds3d.GeometricMotionParams()
         setattr(q, field, value)
         with pytest.raises(ValueError, match=field):

@@ -40,14 +40,18 @@ using ds3d::slam::GeometricMotionStats;
   X(warp_window, "half-size of the depth-edge / min-depth window of the warp [px], >= 0")         \
   X(warp_chi2, "chi2 (1 dof, 99.9 %) of the warp's depth test, > 0")                              \
   X(min_warp_area, "smallest warp candidate (metric area of its pixels) [m^2], > 0")              \
+  X(max_speed, "fastest object motion the warp explains as a receding surface [m/s], >= 0 (0 = off)") \
   X(image_scale, "the source's ORB runs on the image resized by this factor, in (0, 1]")          \
   X(max_depth, "depths beyond this are ignored [m], > 0")                                         \
   X(min_cluster_size, "HDBSCAN min_cluster_size (moving keypoints), >= 2")                        \
   X(min_samples, "HDBSCAN min_samples, >= 1")                                                     \
   X(min_support, "moving / tested keypoints in a cluster's region, in (0, 1]")                    \
+  X(min_band_support, "warp components pass the support test when this share of the tested cells within one cell moved, in (0, 1]") \
   X(max_object_size, "clusters larger than this in x, y or z are not objects [m], > 0")           \
+  X(max_object_width, "widest object segment along the floor [m], > 0")                            \
   X(box_margin, "object boxes grow by this in x, y and z [m], >= 0")                              \
-  X(hold_frames, "frames an object is kept after its last motion evidence, >= 0")
+  X(hold_frames, "frames an object is kept after its last motion evidence, >= 0")                 \
+  X(segment_objects, "grow each object over the depth-continuous surface around its evidence and report it as DynamicObjects.pixel_mask (False: boxes only)")
 
 // Every field of GeometricMotionStats except the pose (bound separately as a 4x4 array).
 #define DS3D_GEOMETRIC_STATS(X)                                                                   \
@@ -62,6 +66,10 @@ using ds3d::slam::GeometricMotionStats;
   X(num_candidates, "clusters that passed the size and support tests")                             \
   X(num_new_objects, "candidates confirmed this frame")                                            \
   X(num_objects, "objects reported (new + held)")                                                  \
+  X(num_segments, "grown object segments in the pixel mask")                                       \
+  X(num_segments_leaked, "regions that outgrew the object size (seeds kept only)")                 \
+  X(num_segment_cells, "warp grid cells in the pixel mask")                                        \
+  X(ground_found, "a floor plane bounded the segments")                                            \
   X(pixel_sigma, "sigma_px used this frame [px]")
 
 namespace {
