@@ -281,8 +281,9 @@ void bind_dynamic_sources(py::module_& m) {
       },
       py::arg("spec"), py::arg("weights") = "", py::arg("detect_every") = 1,
       py::arg("min_score") = py::none(),
-      "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx' or 'A+B'\n"
-      "(e.g. 'htx+geometric'); weights = htx weights file ('' = the default model), detect_every\n"
+      "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
+      "(A, then B on what A left, e.g. 'htx+geometric') or 'A&B' (A's boxes only where B sees\n"
+      "motion, e.g. 'htx&geometric'); weights = htx weights file ('' = the default model), detect_every\n"
       ">= 1 and min_score in [0, 1] for htx. ValueError for an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");
 
