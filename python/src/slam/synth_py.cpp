@@ -99,40 +99,7 @@ void bind_synth(py::module_& m) {
       [](const std::string& p) { return camera_dict(ds3d::read_camera_file(p)); }, py::arg("path"),
       "camera.txt (fx fy cx cy k1 k2 p1 p2 k3 depth_scale) as a dict.");
 
-  py::class_<ds3d::RgbdDataset>(
-      m, "RgbdDataset", "A TUM/Bonn RGB-D folder read frame by frame (include/ds3d/dataset.hpp).")
-      .def(py::init([](const std::string& dir, double max_difference, double offset) {
-             return ds3d::RgbdDataset::open(dir,
-                                            {.max_difference = max_difference, .offset = offset});
-           }),
-           py::arg("directory"), py::arg("max_difference") = 0.02, py::arg("offset") = 0.0)
-      .def("__len__", &ds3d::RgbdDataset::size)
-      .def(
-          "frame",
-          [](const ds3d::RgbdDataset& ds, std::size_t i) {
-            ds3d::RgbdFrame f;
-            {
-              py::gil_scoped_release release;
-              f = ds.frame(i);
-            }
-            py::dict d;
-            d["index"] = f.index;
-            d["timestamp"] = f.timestamp;
-            d["depth_timestamp"] = f.depth_timestamp;
-            d["rgb"] = mat_to_array<std::uint8_t>(f.rgb);
-            d["depth"] = mat_to_array<std::uint16_t>(f.depth);
-            return d;
-          },
-          py::arg("i"),
-          "dict: index, timestamp, depth_timestamp, rgb (H,W,3 BGR uint8), depth (H,W uint16)")
-      .def_property_readonly("camera",
-                             [](const ds3d::RgbdDataset& ds) { return camera_dict(ds.camera()); })
-      .def_property_readonly("directory",
-                             [](const ds3d::RgbdDataset& ds) { return ds.directory().string(); })
-      .def_property_readonly("groundtruth_path", [](const ds3d::RgbdDataset& ds) -> py::object {
-        const auto p = ds.groundtruth_path();
-        return p ? py::object(py::str(p->string())) : py::object(py::none());
-      });
+  // ds3d.RgbdDataset is bound in dataset_py.cpp.
 
   py::class_<ds3d::synth::SyntheticScene>(m, "_SyntheticScene")
       .def(py::init([](const std::string& scenario, int frames, std::uint64_t seed, int humans,

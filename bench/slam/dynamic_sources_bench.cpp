@@ -1,0 +1,91 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// HdbscanMasker::mask (include/ds3d/dynamic_sources.hpp) per frame on a generated walking
+// sequence (ds3d::synth walking_xyz, 640x480, two walkers, 30 frames): ORB features (1000) are
+// extracted beforehand; the objects are the image boxes of the generator's walkers (bounding
+// rectangle of each human_id), as a perfect 2-D detector would report them. One iteration masks
+// the whole sequence with a fresh masker (its carried regions start empty).
+#include <benchmark/benchmark.h>
+
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ds3d/dynamic_sources.hpp"
+#include "ds3d/orb_features.hpp"
+#include "ds3d/synth.hpp"
+
+namespace {
+
+struct Prepared {
+  ds3d::slam::FrameInput input;
+  ds3d::slam::OrbFeatures features;
+  ds3d::slam::DynamicObjects objects;
+};
+
+const std::vector<Prepared>& prepared() {
+  static const std::vector<Prepared> p = [] {
+    cv::setNumThreads(1);
+    ds3d::synth::SynthOptions o;
+    o.scenario = ds3d::synth::Scenario::kWalkingXyz;
+    o.num_frames = 30;
+    const ds3d::synth::SyntheticScene scene(o);
+    const ds3d::slam::OrbExtractor ex;
+    std::vector<Prepared> out;
+    for (std::size_t i = 0; i < scene.size(); ++i) {
+      const auto f = scene.render(i);
+      Prepared q;
+      q.input.index = i;
+      q.input.timestamp = f.timestamp;
+      q.input.rgb = f.rgb;
+      q.input.depth = f.depth;
+      q.features = ex.extract(f.rgb, f.depth, o.camera);
+      for (int id = 1; id <= 4; ++id) {
+        cv::Mat m = f.human_id == id;
+        if (cv::countNonZero(m) == 0) continue;
+        q.objects.boxes_2d.push_back(cv::Rect2f(cv::boundingRect(m)));
+        q.objects.scores.push_back(0.9F);
+      }
+      out.push_back(std::move(q));
+    }
+    return out;
+  }();
+  return p;
+}
+
+void BM_HdbscanMaskerMask(benchmark::State& state) {
+  const ds3d::PinholeCamera cam = ds3d::synth::SynthOptions{}.camera;
+  const auto& frames = prepared();
+  std::int64_t dynamic = 0;
+  for (auto _ : state) {
+    ds3d::slam::HdbscanMasker masker;
+    dynamic = 0;
+    for (const auto& f : frames) {
+      const auto m = masker.mask(f.input, cam, f.features, f.objects);
+      dynamic += masker.last_result().num_dynamic;
+      benchmark::DoNotOptimize(m.data());
+    }
+  }
+  const auto n = static_cast<std::int64_t>(frames.size());
+  state.counters["dynamic_kp_per_frame"] = static_cast<double>(dynamic) / static_cast<double>(n);
+  state.SetItemsProcessed(state.iterations() * n);
+}
+BENCHMARK(BM_HdbscanMaskerMask)->Unit(benchmark::kMillisecond);
+
+// image_boxes() of four 3-D boxes (projection of 8 corners each): the per-frame glue cost.
+void BM_ImageBoxes3d(benchmark::State& state) {
+  const ds3d::PinholeCamera cam = ds3d::synth::SynthOptions{}.camera;
+  ds3d::slam::DynamicObjects o;
+  for (int k = 0; k < 4; ++k) {
+    Eigen::Matrix<float, 8, 3> c;
+    for (int i = 0; i < 8; ++i) {
+      c.row(i) << -0.3F + 0.4F * static_cast<float>(k) + ((i & 1) ? 0.5F : 0.0F),
+          (i & 2) ? 0.8F : -0.9F, 2.0F + static_cast<float>(k) * 0.5F + ((i & 4) ? 0.4F : 0.0F);
+    }
+    o.boxes_3d.push_back(c);
+  }
+  for (auto _ : state) benchmark::DoNotOptimize(ds3d::slam::image_boxes(o, cam));
+  state.SetItemsProcessed(state.iterations() * 4);
+}
+BENCHMARK(BM_ImageBoxes3d);
+
+}  // namespace

@@ -1,0 +1,314 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// Bindings for include/ds3d/dynamic_sources.hpp: ds3d.DynamicObjects, the ds3d.DynamicObjectSource
+// base (detect() on numpy images), ds3d.FileSource(+Params), ds3d.HdbscanMasker,
+// ds3d.make_dynamic_source (every source by its --dynamic name, htx and composites included),
+// ds3d.image_boxes and ds3d.keypoint_array. GeometricMotionSource is in geometric_motion_py.cpp.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "ds3d/dynamic_sources.hpp"
+#include "../numpy_util.hpp"
+#include "slam_py_util.hpp"
+
+namespace py = pybind11;
+namespace pu = ds3d::py_slam;
+using ds3d::slam::DynamicObjects;
+using ds3d::slam::DynamicObjectSource;
+using ds3d::slam::FileSource;
+using ds3d::slam::FileSourceParams;
+using ds3d::slam::HdbscanMasker;
+
+namespace {
+
+// (K, 4) float32 rows x_min y_min x_max y_max -> Rect2f list; NaN / inverted boxes rejected.
+std::vector<cv::Rect2f> rects_from(const char* fn, const py::handle& obj) {
+  const auto a = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(obj);
+  DS3D_CHECK(a && a.ndim() == 2 && a.shape(1) == 4, fn,
+             ": boxes_2d must be a (K, 4) array [x_min y_min x_max y_max] (got ", pu::describe(obj),
+             ")");
+  std::vector<cv::Rect2f> out;
+  const auto r = a.unchecked<2>();
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+    const float x0 = r(i, 0), y0 = r(i, 1), x1 = r(i, 2), y1 = r(i, 3);
+    DS3D_CHECK(std::isfinite(x0) && std::isfinite(y0) && std::isfinite(x1) && std::isfinite(y1) &&
+                   x1 >= x0 && y1 >= y0,
+               fn, ": boxes_2d row ", i, " must be finite with x_max >= x_min and y_max >= y_min (got [",
+               x0, ", ", y0, ", ", x1, ", ", y1, "])");
+    out.emplace_back(x0, y0, x1 - x0, y1 - y0);
+  }
+  return out;
+}
+
+DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores,
+                            const py::object& boxes_3d, const py::object& pixel_mask) {
+  constexpr const char* fn = "ds3d.DynamicObjects";
+  DynamicObjects o;
+  if (!boxes_2d.is_none()) o.boxes_2d = rects_from(fn, boxes_2d);
+  if (!scores.is_none()) {
+    const auto s = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(scores);
+    DS3D_CHECK(s && s.ndim() == 1 && static_cast<std::size_t>(s.shape(0)) == o.boxes_2d.size(), fn,
+               ": scores must be a (K,) array, one per row of boxes_2d (got ", pu::describe(scores),
+               " for ", o.boxes_2d.size(), " boxes)");
+    for (py::ssize_t i = 0; i < s.shape(0); ++i) {
+      const float v = s.at(i);
+      DS3D_CHECK(v >= 0.0F && v <= 1.0F, fn, ": scores[", i, "] must be in [0, 1] (got ", v, ")");
+      o.scores.push_back(v);
+    }
+  }
+  if (!boxes_3d.is_none()) {
+    const auto b = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(boxes_3d);
+    DS3D_CHECK(b && b.ndim() == 3 && b.shape(1) == 8 && b.shape(2) == 3, fn,
+               ": boxes_3d must be a (K, 8, 3) array of camera-frame corners [m] (got ",
+               pu::describe(boxes_3d), ")");
+    for (py::ssize_t k = 0; k < b.shape(0); ++k) {
+      Eigen::Matrix<float, 8, 3> c;
+      for (int i = 0; i < 8; ++i) {
+        for (int j = 0; j < 3; ++j) {
+          c(i, j) = b.at(k, i, j);
+          DS3D_CHECK(std::isfinite(c(i, j)), fn, ": boxes_3d[", k, "] has a non-finite corner");
+        }
+      }
+      o.boxes_3d.push_back(c);
+    }
+  }
+  if (!pixel_mask.is_none()) {
+    const auto m = pu::exact<std::uint8_t>(fn, "pixel_mask", pixel_mask, "an (H, W) uint8 array");
+    DS3D_CHECK(m.ndim() == 2, fn, ": pixel_mask must be an (H, W) uint8 array (got ",
+               pu::describe(pixel_mask), ")");
+    cv::Mat(static_cast<int>(m.shape(0)), static_cast<int>(m.shape(1)), CV_8UC1,
+            const_cast<std::uint8_t*>(m.data()))
+        .copyTo(o.pixel_mask);
+  }
+  return o;
+}
+
+// Shared by every source: numpy images -> FrameInput -> detect() without the GIL.
+DynamicObjects run_detect(DynamicObjectSource& src, const py::object& rgb, const py::object& depth,
+                          double timestamp, const py::object& camera, std::size_t index) {
+  const std::string name = "ds3d.DynamicObjectSource.detect (" + src.name() + ")";
+  const char* fn = name.c_str();
+  DS3D_CHECK(std::isfinite(timestamp), fn, ": timestamp must be finite (got ", timestamp, ")");
+  py::array_t<std::uint8_t, py::array::c_style> rgb_keep;
+  py::array_t<std::uint16_t, py::array::c_style> depth_keep;
+  ds3d::slam::FrameInput in;
+  in.index = index;
+  in.timestamp = timestamp;
+  in.rgb = pu::image_view(fn, rgb, rgb_keep);
+  in.depth = pu::depth_view(fn, depth, depth_keep);
+  const auto cam = pu::camera_from(fn, camera);
+  pu::check_size(fn, "rgb", in.rgb, cam);
+  pu::check_size(fn, "depth", in.depth, cam);
+  const py::gil_scoped_release release;
+  // Sources may keep the frame's images as history (GeometricMotionSource shares the depth
+  // image of past frames): give them owned copies, not views of numpy memory that Python may
+  // free or overwrite before the next call.
+  in.rgb = in.rgb.clone();
+  in.depth = in.depth.clone();
+  return src.detect(in, cam);
+}
+
+}  // namespace
+
+void bind_dynamic_sources(py::module_& m) {
+  py::class_<DynamicObjects>(
+      m, "DynamicObjects",
+      "What a dynamic-object source found in one frame (include/ds3d/slam_frontend.hpp).\n"
+      "DynamicObjects(boxes_2d=None, scores=None, boxes_3d=None, pixel_mask=None) builds one from\n"
+      "your own detector's output (ValueError on bad shapes, non-finite values, inverted boxes).")
+      .def(py::init(&objects_from), py::arg("boxes_2d") = py::none(), py::arg("scores") = py::none(),
+           py::arg("boxes_3d") = py::none(), py::arg("pixel_mask") = py::none())
+      .def_property_readonly(
+          "boxes_2d",
+          [](const DynamicObjects& o) {
+            py::array_t<float> a({static_cast<py::ssize_t>(o.boxes_2d.size()), static_cast<py::ssize_t>(4)});
+            auto r = a.mutable_unchecked<2>();
+            for (std::size_t i = 0; i < o.boxes_2d.size(); ++i) {
+              const auto& b = o.boxes_2d[i];
+              const auto k = static_cast<py::ssize_t>(i);
+              r(k, 0) = b.x;
+              r(k, 1) = b.y;
+              r(k, 2) = b.x + b.width;
+              r(k, 3) = b.y + b.height;
+            }
+            return a;
+          },
+          "(K, 4) float32 image boxes [x_min y_min x_max y_max] [px, raw image].")
+      .def_property_readonly(
+          "scores", [](const DynamicObjects& o) { return ds3d::py_util::to_numpy(o.scores); },
+          "(K,) float32 confidence per 2-D box in [0, 1], or empty.")
+      .def_property_readonly(
+          "boxes_3d",
+          [](const DynamicObjects& o) {
+            const auto k = static_cast<py::ssize_t>(o.boxes_3d.size());
+            py::array_t<float> a({k, static_cast<py::ssize_t>(8), static_cast<py::ssize_t>(3)});
+            auto r = a.mutable_unchecked<3>();
+            for (py::ssize_t b = 0; b < k; ++b) {
+              for (int i = 0; i < 8; ++i) {
+                for (int j = 0; j < 3; ++j) r(b, i, j) = o.boxes_3d[static_cast<std::size_t>(b)](i, j);
+              }
+            }
+            return a;
+          },
+          "(K, 8, 3) float32 corners of 3-D boxes in the camera frame (x right, y down, z forward) [m].")
+      .def_property_readonly(
+          "pixel_mask",
+          [](const DynamicObjects& o) -> py::object {
+            if (o.pixel_mask.empty()) return py::none();
+            return pu::mat_to_array<std::uint8_t>(o.pixel_mask);
+          },
+          "(H, W) uint8 mask, non-zero = dynamic pixel, or None.")
+      .def_property_readonly(
+          "empty",
+          [](const DynamicObjects& o) {
+            return o.boxes_2d.empty() && o.boxes_3d.empty() &&
+                   (o.pixel_mask.empty() || cv::countNonZero(o.pixel_mask) == 0);
+          },
+          "True when nothing was found (no box, no dynamic pixel).")
+      .def("__repr__", [](const DynamicObjects& o) {
+        return "DynamicObjects(" + std::to_string(o.boxes_2d.size()) + " 2-D boxes, " +
+               std::to_string(o.boxes_3d.size()) + " 3-D boxes, pixel_mask=" +
+               (o.pixel_mask.empty() ? "None" : "yes") + ")";
+      });
+
+  py::class_<DynamicObjectSource, std::shared_ptr<DynamicObjectSource>>(
+      m, "DynamicObjectSource",
+      "Base of the dynamic-object sources (file, geometric, htx, composites; "
+      "include/ds3d/slam_frontend.hpp). Sources keep state across frames: call detect() in frame "
+      "order on one sequence per instance.")
+      .def("detect", &run_detect, py::arg("rgb"), py::arg("depth"), py::arg("timestamp"),
+           py::arg("camera"), py::arg("index") = 0,
+           "Objects in one frame. rgb: (H, W, 3) uint8 BGR or (H, W) uint8; depth: (H, W) uint16\n"
+           "(camera['depth_scale'] units per metre, 0 = missing) or None; timestamp [s], finite,\n"
+           "non-decreasing; camera: dict (as ds3d.camera_preset), preset name or camera.txt path,\n"
+           "of the image size; index: position in the sequence (seeds the htx draw). Returns\n"
+           "ds3d.DynamicObjects; releases the GIL. The source gets its own copy of the images (it may\n"
+           "keep past frames), so the arrays may be reused afterwards. ValueError for a wrong dtype,\n"
+           "shape or size.")
+      .def_property_readonly("name", &DynamicObjectSource::name, "short name, e.g. 'file', 'htx+geometric'");
+
+  py::class_<FileSourceParams>(m, "FileSourceParams", "Options of ds3d.FileSource.")
+      .def(py::init<>())
+      .def_readwrite("max_dt", &FileSourceParams::max_dt,
+                     "largest frame <-> detection timestamp difference [s], >= 0")
+      .def_readwrite("min_score", &FileSourceParams::min_score,
+                     "detections below this score are dropped, in [0, 1]")
+      .def_readwrite("classes", &FileSourceParams::classes,
+                     "class names treated as dynamic (list of str); empty = every class")
+      .def("validate", &FileSourceParams::validate, "Raises ValueError naming the bad field.");
+
+  py::class_<FileSource, DynamicObjectSource, std::shared_ptr<FileSource>>(
+      m, "FileSource",
+      "The 'file:PATH' source: boxes per timestamp from a JSON-lines detections file "
+      "(include/ds3d/detections.hpp), so that any offline detector drives ds3d.")
+      .def(py::init([](const py::object& path, const FileSourceParams& params) {
+             return std::make_shared<FileSource>(std::filesystem::path(pu::path_from(path)), params);
+           }),
+           py::arg("path"),
+           py::arg("params") = FileSourceParams{},
+           "Reads the file once. RuntimeError naming file and line for a malformed file; "
+           "ValueError for bad params.")
+      .def_static(
+          "from_text",
+          [](const std::string& text, const FileSourceParams& params) {
+            return std::make_shared<FileSource>(ds3d::DetectionsFile::parse(text, "<text>"), params);
+          },
+          py::arg("text"), py::arg("params") = FileSourceParams{},
+          "A source from the content of a detections file (one JSON object per line).")
+      .def_property_readonly("num_matched", &FileSource::num_matched,
+                             "frames so far whose timestamp matched a detections line")
+      .def_property_readonly("num_unmatched", &FileSource::num_unmatched,
+                             "frames so far with no detections line within max_dt");
+
+  py::class_<HdbscanMasker, std::shared_ptr<HdbscanMasker>>(
+      m, "HdbscanMasker",
+      "The 'hdbscan' masker (3DS-SLAM §III-C): box-gated HDBSCAN on the ORB keypoints, boxes from\n"
+      "DynamicObjects (2-D boxes, projected 3-D boxes) plus its pixel_mask. Keeps regions across\n"
+      "frames: one instance per sequence, frames in order.")
+      .def(py::init<const ds3d::DynamicFilterParams&>(), py::arg("params") = ds3d::DynamicFilterParams{})
+      .def(
+          "mask",
+          [](HdbscanMasker& masker, const py::object& rgb, const py::object& depth,
+             const ds3d::slam::OrbFeatures& features, const DynamicObjects& objects,
+             const py::object& camera, double timestamp, std::size_t index) {
+            constexpr const char* fn = "ds3d.HdbscanMasker.mask";
+            DS3D_CHECK(std::isfinite(timestamp), fn, ": timestamp must be finite (got ", timestamp, ")");
+            py::array_t<std::uint8_t, py::array::c_style> rgb_keep;
+            py::array_t<std::uint16_t, py::array::c_style> depth_keep;
+            ds3d::slam::FrameInput in;
+            in.index = index;
+            in.timestamp = timestamp;
+            in.rgb = pu::image_view(fn, rgb, rgb_keep);
+            in.depth = pu::depth_view(fn, depth, depth_keep);
+            const auto cam = pu::camera_from(fn, camera);
+            pu::check_size(fn, "rgb", in.rgb, cam);
+            pu::check_size(fn, "depth", in.depth, cam);
+            if (!objects.pixel_mask.empty()) pu::check_size(fn, "objects.pixel_mask", objects.pixel_mask, cam);
+            std::vector<std::uint8_t> out;
+            {
+              const py::gil_scoped_release release;
+              out = masker.mask(in, cam, features, objects);
+            }
+            py::array_t<bool> a(static_cast<py::ssize_t>(out.size()));
+            for (std::size_t i = 0; i < out.size(); ++i) a.mutable_data()[i] = out[i] != 0;
+            return a;
+          },
+          py::arg("rgb"), py::arg("depth"), py::arg("features"), py::arg("objects"),
+          py::arg("camera"), py::arg("timestamp") = 0.0, py::arg("index") = 0,
+          "(N,) bool, True = keypoint i of `features` (ds3d.OrbExtractor.extract of this frame)\n"
+          "lies on a moving object of `objects`. Images and camera as DynamicObjectSource.detect.")
+      .def_property_readonly(
+          "last_result", [](const HdbscanMasker& h) { return h.last_result(); },
+          "ds3d.DynamicFilterResult of the last mask() call (dynamic, num_dynamic, ...).")
+      .def_property_readonly("name", &HdbscanMasker::name);
+
+  m.def(
+      "make_dynamic_source",
+      [](const std::string& spec, const py::object& weights, int detect_every,
+         std::optional<float> min_score) {
+        ds3d::slam::DynamicSourceOptions o;
+        o.weights = pu::path_from(weights);
+        o.htx.detect_every = detect_every;
+        if (min_score) o.htx.min_score = *min_score;
+        return ds3d::slam::make_dynamic_source(spec, o);
+      },
+      py::arg("spec"), py::arg("weights") = "", py::arg("detect_every") = 1,
+      py::arg("min_score") = py::none(),
+      "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
+      "(A, then B on what A left, e.g. 'htx+geometric') or 'A&B' (A's boxes only where B sees\n"
+      "motion, e.g. 'htx&geometric'); weights = htx weights file ('' = the default model), detect_every\n"
+      ">= 1 and min_score in [0, 1] for htx. ValueError for an unknown name or bad options,\n"
+      "RuntimeError for an unreadable file.");
+
+  m.def(
+      "image_boxes",
+      [](const DynamicObjects& objects, const py::object& camera) {
+        return ds3d::slam::image_boxes(objects, pu::camera_from("ds3d.image_boxes", camera));
+      },
+      py::arg("objects"), py::arg("camera"),
+      "list of ds3d.ImageBox: the 2-D boxes of `objects` (with scores) and its 3-D boxes\n"
+      "projected with `camera` (with depth ranges); boxes wholly outside the image or behind the\n"
+      "camera are left out.");
+
+  m.def(
+      "keypoint_array",
+      [](const ds3d::slam::OrbFeatures& features, const py::object& depth, const py::object& camera) {
+        constexpr const char* fn = "ds3d.keypoint_array";
+        py::array_t<std::uint16_t, py::array::c_style> keep;
+        const cv::Mat d = pu::depth_view(fn, depth, keep);
+        const auto cam = pu::camera_from(fn, camera);
+        pu::check_size(fn, "depth", d, cam);
+        return ds3d::slam::keypoint_array(features, d, cam);
+      },
+      py::arg("features"), py::arg("depth"), py::arg("camera"),
+      "(N, 3) float32 rows (u, v, z): raw keypoint pixel and the depth [m] of `depth` at the\n"
+      "rounded pixel (0 = none) when depth is an (H, W) uint16 image of the camera size, else the\n"
+      "features' own depth. The input of ds3d.DynamicFeatureFilter.filter.");
+}

@@ -1,0 +1,196 @@
+# SPDX-License-Identifier: Apache-2.0
+# SPDX-FileCopyrightText: 2026 ds3d authors
+"""ds3d.FileSource, HdbscanMasker, DynamicObjects, image_boxes, keypoint_array and
+make_dynamic_source (include/ds3d/dynamic_sources.hpp)."""
+import json
+
+import numpy as np
+import pytest
+
+import ds3d
+
+CAM = ds3d.camera_preset("tum_ros")  # 640 x 480, depth_scale 5000
+CORNERS = [[x, y, z] for x in (-0.2, 0.2) for y in (-0.5, 0.5) for z in (2.0, 2.4)]
+
+
+def textured(seed, h=480, w=640):
+    rng = np.random.default_rng(seed)
+    img = np.full((h, w, 3), 90, np.uint8)
+    for _ in range(1500):
+        y, x = rng.integers(0, h - 20), rng.integers(0, w - 20)
+        s = rng.integers(3, 20)
+        img[y:y + s, x:x + s] = rng.integers(0, 255, 3)
+    return img
+
+
+@pytest.fixture()
+def detections(tmp_path):
+    lines = [
+        {"timestamp": 1.0, "boxes": [
+            {"bbox": [10, 20, 110, 220], "score": 0.9, "class": "person"},
+            {"corners": CORNERS, "score": 0.5, "class": "chair"}]},
+        {"timestamp": 2.0, "boxes": []},
+    ]
+    path = tmp_path / "det.jsonl"
+    path.write_text("# test\n" + "\n".join(json.dumps(x) for x in lines) + "\n")
+    return path
+
+
+def test_file_source_round_trip(detections):
+    rgb = np.zeros((480, 640, 3), np.uint8)
+    src = ds3d.FileSource(detections)
+    assert src.name == "file" and isinstance(src, ds3d.DynamicObjectSource)
+    o = src.detect(rgb, None, 1.005, CAM)
+    assert np.allclose(o.boxes_2d, [[10, 20, 110, 220]]) and np.allclose(o.scores, [0.9])
+    assert o.boxes_3d.shape == (1, 8, 3) and np.allclose(o.boxes_3d[0], CORNERS)
+    assert o.pixel_mask is None and not o.empty
+    assert src.detect(rgb, None, 1.5, CAM).empty  # no line within max_dt = 0.02 s
+    assert src.detect(rgb, None, 2.0, CAM).empty  # a line with no boxes
+    assert (src.num_matched, src.num_unmatched) == (2, 1)
+    p = ds3d.FileSourceParams()
+    p.classes = ["person"]
+    only = ds3d.FileSource(str(detections), p).detect(rgb, None, 1.0, CAM)
+    assert len(only.boxes_2d) == 1 and len(only.boxes_3d) == 0
+    p = ds3d.FileSourceParams()
+    p.min_score = 0.95
+    assert ds3d.FileSource(detections, p).detect(rgb, None, 1.0, CAM).empty
+    p = ds3d.FileSourceParams()
+    p.max_dt = 0.6
+    assert not ds3d.FileSource(detections, p).detect(rgb, None, 1.5, CAM).empty
+    via_spec = ds3d.make_dynamic_source(f"file:{detections}").detect(rgb, None, 1.0, CAM)
+    assert np.array_equal(via_spec.boxes_3d, o.boxes_3d)
+    text = ds3d.FileSource.from_text(detections.read_text()).detect(rgb, None, 1.0, CAM)
+    assert np.array_equal(text.boxes_2d, o.boxes_2d)
+
+
+def test_image_boxes_and_keypoint_array(detections):
+    rgb = textured(4)
+    o = ds3d.FileSource(detections).detect(rgb, None, 1.0, CAM)
+    boxes = ds3d.image_boxes(o, CAM)
+    assert len(boxes) == 2
+    assert (boxes[0].x_min, boxes[0].y_max, boxes[0].score) == pytest.approx((10, 220, 0.9))
+    b = boxes[1]  # the projected 3-D box: x in [-0.2, 0.2] m at 2-2.4 m, centred on cx
+    assert b.z_max > 0  # carries a depth range
+    assert 2.0 - 1e-4 <= b.z_min < b.z_max <= 2.4 + 1e-4
+    assert b.x_min == pytest.approx(319.5 - 525 * 0.2 / 2.0, abs=0.5)
+    assert b.x_max == pytest.approx(319.5 + 525 * 0.2 / 2.0, abs=0.5)
+    depth = np.full((480, 640), 10000, np.uint16)
+    f = ds3d.OrbExtractor().extract(rgb, depth, CAM)
+    kp = ds3d.keypoint_array(f, depth, CAM)
+    assert kp.shape == (len(f), 3) and kp.dtype == np.float32
+    assert np.array_equal(kp[:, :2], f.keypoints) and np.allclose(kp[:, 2], 2.0)
+    assert np.allclose(ds3d.keypoint_array(f, None, CAM)[:, 2], f.depth)
+
+
+def test_hdbscan_masker_flags_the_near_object_in_its_box():
+    rgb = textured(5)
+    depth = np.full((480, 640), 15000, np.uint16)  # wall at 3 m
+    depth[120:380, 240:400] = 7500  # an object at 1.5 m
+    f = ds3d.OrbExtractor().extract(rgb, depth, CAM)
+    kp = f.keypoints
+    box = np.array([[220, 100, 420, 400]], np.float32)
+    objects = ds3d.DynamicObjects(boxes_2d=box, scores=[0.9])
+    masker = ds3d.HdbscanMasker()
+    dyn = masker.mask(rgb, depth, f, objects, CAM, timestamp=0.0)
+    assert dyn.dtype == bool and dyn.shape == (len(f),)
+    on_object = (kp[:, 0] > 244) & (kp[:, 0] < 396) & (kp[:, 1] > 124) & (kp[:, 1] < 376)
+    in_box = (kp[:, 0] >= 220) & (kp[:, 0] <= 420) & (kp[:, 1] >= 100) & (kp[:, 1] <= 400)
+    assert on_object.sum() > 30
+    assert dyn[on_object].mean() > 0.9
+    assert not dyn[~in_box].any()  # nothing outside the box
+    assert not dyn[in_box & (f.depth > 2.5)].any()  # the wall behind the object stays
+    assert masker.last_result.num_dynamic == dyn.sum()
+    # A pixel mask alone marks exactly the keypoints on its non-zero pixels.
+    mask = np.zeros((480, 640), np.uint8)
+    mask[:, :320] = 1
+    dyn2 = ds3d.HdbscanMasker().mask(rgb, depth, f, ds3d.DynamicObjects(pixel_mask=mask), CAM)
+    assert np.array_equal(dyn2, np.round(kp[:, 0]) < 320)
+    assert ds3d.HdbscanMasker().mask(rgb, depth, f, ds3d.DynamicObjects(), CAM).sum() == 0
+
+
+def test_bad_input_errors(detections, tmp_path):
+    rgb = np.zeros((480, 640, 3), np.uint8)
+    with pytest.raises(ValueError, match="boxes_2d row 0"):
+        ds3d.DynamicObjects(boxes_2d=[[10, 10, 5, 20]])
+    with pytest.raises(ValueError, match="boxes_2d row 0"):
+        ds3d.DynamicObjects(boxes_2d=[[np.nan, 10, 15, 20]])
+    with pytest.raises(ValueError, match="boxes_2d must be a \\(K, 4\\)"):
+        ds3d.DynamicObjects(boxes_2d=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="boxes_2d must be a \\(K, 4\\)"):
+        ds3d.DynamicObjects(boxes_2d=[["a", "b", "c", "d"]])
+    with pytest.raises(ValueError, match="scores"):
+        ds3d.DynamicObjects(boxes_2d=[[0, 0, 1, 1]], scores=[0.5, 0.5])
+    with pytest.raises(ValueError, match="scores\\[0\\]"):
+        ds3d.DynamicObjects(boxes_2d=[[0, 0, 1, 1]], scores=[1.5])
+    with pytest.raises(ValueError, match="boxes_3d must be a \\(K, 8, 3\\)"):
+        ds3d.DynamicObjects(boxes_3d=np.zeros((1, 4, 3)))
+    with pytest.raises(ValueError, match="pixel_mask must be .*bool"):
+        ds3d.DynamicObjects(pixel_mask=np.zeros((480, 640), bool))
+    src = ds3d.FileSource(detections)
+    with pytest.raises(ValueError, match="detect \\(file\\): depth .*float32"):
+        src.detect(rgb, np.zeros((480, 640), np.float32), 1.0, CAM)
+    with pytest.raises(ValueError, match="timestamp must be finite"):
+        src.detect(rgb, None, float("nan"), CAM)
+    with pytest.raises(ValueError, match="camera must be a dict"):
+        src.detect(rgb, None, 1.0, 525.0)
+    f = ds3d.OrbExtractor().extract(rgb, None, CAM)
+    with pytest.raises(ValueError, match="keypoint_array: depth is 10x10"):
+        ds3d.keypoint_array(f, np.zeros((10, 10), np.uint16), CAM)
+    with pytest.raises(ValueError, match="objects.pixel_mask is 10x10"):
+        ds3d.HdbscanMasker().mask(rgb, None, f, ds3d.DynamicObjects(pixel_mask=np.zeros((10, 10), np.uint8)), CAM)
+    bad = ds3d.DynamicFilterParams()
+    bad.min_cluster_size = 0
+    with pytest.raises(ValueError, match="min_cluster_size"):
+        ds3d.HdbscanMasker(bad)
+    p = ds3d.FileSourceParams()
+    p.min_score = 2.0
+    with pytest.raises(ValueError, match="min_score"):
+        p.validate()
+    with pytest.raises(ValueError, match="min_score"):
+        ds3d.FileSource(detections, p)
+    broken = tmp_path / "broken.jsonl"
+    broken.write_text('{"timestamp": 1.0, "boxes": [{"bbox": [1, 2, 3]}]}\n')
+    with pytest.raises(RuntimeError, match="broken.jsonl"):
+        ds3d.FileSource(broken)
+    with pytest.raises(ValueError, match="bogus"):
+        ds3d.make_dynamic_source("bogus")
+    assert ds3d.make_dynamic_source("none").detect(rgb, None, 0.0, CAM).empty
+
+
+def test_sources_keep_copies_not_views_of_the_frames():
+    # GeometricMotionSource keeps past depth images; overwriting the caller's arrays after each
+    # detect() must not change what it finds (it did when detect() passed numpy views).
+    scene = ds3d.synth.Scene("walking_xyz", frames=8, seed=1)
+    frames = [scene.render(i) for i in range(8)]
+
+    def boxes(scribble):
+        src = ds3d.make_dynamic_source("geometric")
+        out = []
+        for f in frames:
+            rgb, depth = f["rgb"].copy(), f["depth"].copy()
+            out.append(src.detect(rgb, depth, f["timestamp"], CAM).boxes_3d)
+            if scribble:
+                rgb[:] = 7
+                depth[:] = 1234
+        return out
+
+    clean, scribbled = boxes(False), boxes(True)
+    assert sum(len(b) for b in clean) > 0
+    assert all(np.array_equal(a, b) for a, b in zip(clean, scribbled))
+
+
+def test_make_dynamic_source_builds_htx_and_composites():
+    import pathlib
+    weights = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "htx" / "tiny_weights.safetensors"
+    f = ds3d.synth.Scene("walking_xyz", frames=1, seed=3).render(0)
+    for spec in ("htx", "htx+geometric", "geometric+htx", "htx&geometric"):
+        src = ds3d.make_dynamic_source(spec, weights=weights, min_score=0.0)
+        assert src.name == spec
+        o = src.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
+        assert o.boxes_3d.shape[1:] == (8, 3) and np.all(np.isfinite(o.boxes_3d))
+        if spec != "htx&geometric":  # the gate needs motion, which a first frame cannot show
+            assert len(o.boxes_3d) > 0  # min_score 0 keeps the untrained fixture's boxes
+    with pytest.raises(RuntimeError, match="nonexistent"):
+        ds3d.make_dynamic_source("htx", weights="/nonexistent/w.safetensors")
+    with pytest.raises(ValueError, match="detect_every"):
+        ds3d.make_dynamic_source("htx", weights=weights, detect_every=0)
