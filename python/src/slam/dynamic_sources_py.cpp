@@ -107,9 +107,9 @@ DynamicObjects run_detect(DynamicObjectSource& src, const py::object& rgb, const
   pu::check_size(fn, "rgb", in.rgb, cam);
   pu::check_size(fn, "depth", in.depth, cam);
   const py::gil_scoped_release release;
-  // Sources may keep the frame's images as history (GeometricMotionSource shares the depth
-  // image of past frames): give them owned copies, not views of numpy memory that Python may
-  // free or overwrite before the next call.
+  // Sources may keep the frame's images as history (GeometricMotionSource copies the depth it
+  // keeps, but the interface does not promise that of every source): give them owned copies,
+  // not views of numpy memory that Python may free or overwrite before the next call.
   in.rgb = in.rgb.clone();
   in.depth = in.depth.clone();
   return src.detect(in, cam);

@@ -6,45 +6,17 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <cstring>
 #include <string>
 
 #include "ds3d/dataset.hpp"
 #include "ds3d/synth.hpp"
+#include "slam_py_util.hpp"
 
 namespace py = pybind11;
+using ds3d::py_slam::camera_dict;
+using ds3d::py_slam::mat_to_array;
 
 namespace {
-
-template <class T>
-py::array mat_to_array(const cv::Mat& m) {
-  std::vector<py::ssize_t> shape{m.rows, m.cols};
-  if (m.channels() > 1) shape.push_back(m.channels());
-  py::array_t<T> a(shape);
-  const std::size_t row_bytes = static_cast<std::size_t>(m.cols) * m.elemSize();
-  for (int y = 0; y < m.rows; ++y) {
-    std::memcpy(reinterpret_cast<char*>(a.mutable_data()) + static_cast<std::size_t>(y) * row_bytes,
-                m.ptr(y), row_bytes);
-  }
-  return a;
-}
-
-py::dict camera_dict(const ds3d::PinholeCamera& c) {
-  py::dict d;
-  d["fx"] = c.fx;
-  d["fy"] = c.fy;
-  d["cx"] = c.cx;
-  d["cy"] = c.cy;
-  d["width"] = c.width;
-  d["height"] = c.height;
-  d["k1"] = c.k1;
-  d["k2"] = c.k2;
-  d["p1"] = c.p1;
-  d["p2"] = c.p2;
-  d["k3"] = c.k3;
-  d["depth_scale"] = c.depth_scale;
-  return d;
-}
 
 py::dict frame_dict(const ds3d::synth::SynthFrame& f) {
   py::dict d;
