@@ -158,11 +158,12 @@ struct Box3 {
 
 // The warp grid of one frame, as GeometricMotionSource::detect builds it: cell c = j·gw + i is
 // the pixel (off + i·s, off + j·s); state 0 = no usable depth (missing, too far, depth edge),
-// >= 1 usable, 3 = moved into empty space; cz its depth [m], cp its camera-frame point.
+// >= 1 usable, 3 = moved into empty space; cz its depth [m] and cp its camera-frame point, set
+// for every cell with depth (also edge cells, state 0).
 struct SegmentGrid {
   const std::vector<std::uint8_t>& state;
-  const std::vector<Eigen::Vector3f>& cp;
-  const std::vector<Eigen::Vector2d>& rays;  // undistorted normalised ray of each cell
+  const std::vector<float>& cz;               // depth of every cell with depth [m], 0 = none
+  const std::vector<Eigen::Vector3f>& cp;     // its camera-frame point
   int gw, gh, s, off;
 };
 
@@ -203,22 +204,8 @@ SegmentCounts grow_segments(const GeometricMotionParams& prm, const cv::Mat& dep
   };
   // Depth and point of every grid cell with depth (edges included: the region growing's own
   // continuity test separates objects from what lies behind them), 0 = none.
-  std::vector<float> zall(nc, 0.0F);
-  std::vector<Eigen::Vector3f> pall(nc, Eigen::Vector3f::Zero());
-  const double ds = camera.depth_scale;
-  for (int j = 0; j < g.gh; ++j) {
-    const auto* drow = depth.ptr<std::uint16_t>(g.off + j * g.s);
-    for (int i = 0; i < g.gw; ++i) {
-      const std::uint16_t d = drow[g.off + i * g.s];
-      const double z = d / ds;
-      if (d == 0 || z > prm.max_depth) continue;
-      const auto c = static_cast<std::size_t>(j * g.gw + i);
-      const Eigen::Vector2d& r = g.rays[c];
-      zall[c] = static_cast<float>(z);
-      pall[c] = Eigen::Vector3f(static_cast<float>(r.x() * z), static_cast<float>(r.y() * z),
-                                static_cast<float>(z));
-    }
-  }
+  const std::vector<float>& zall = g.cz;
+  const std::vector<Eigen::Vector3f>& pall = g.cp;
   // 0 = not a seed, 1 = evidence of this frame, 2 = carried from the last frame's segment.
   std::vector<std::uint8_t> seed(nc, 0);
   const double m = prm.box_margin;
@@ -373,6 +360,7 @@ SegmentCounts grow_segments(const GeometricMotionParams& prm, const cv::Mat& dep
   // The mask: segment cells and the band of pixels around them that is not behind them.
   *mask = cv::Mat::zeros(depth.rows, depth.cols, CV_8UC1);
   const int r = g.s / 2 + 1;
+  const double ds = camera.depth_scale;
   for (std::size_t c = 0; c < nc; ++c) {
     if (keep[c] == 0) continue;
     ++out.cells;
@@ -801,15 +789,16 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
       const auto* mxrow = cur.win_max.ptr<std::uint16_t>(v);
       for (int i = 0; i < gw; ++i) {
         const int u = off + i * s;
-        if (drow[u] == 0 || mnrow[u] == 0) continue;
+        if (drow[u] == 0) continue;
         const double z = drow[u] / ds;
-        if (z > params_.max_depth || (mxrow[u] - mnrow[u]) / ds > edge_thr(z)) continue;
+        if (z > params_.max_depth) continue;
         const std::size_t c = static_cast<std::size_t>(j * gw + i);
         const Eigen::Vector2d& r = grid_rays_[c];
         const Eigen::Vector3d p(r.x() * z, r.y() * z, z);
-        state[c] = 1;
-        cz[c] = static_cast<float>(z);
+        cz[c] = static_cast<float>(z);  // every cell with depth: the segments grow over edges
         cp[c] = p.cast<float>();
+        if (mnrow[u] == 0 || (mxrow[u] - mnrow[u]) / ds > edge_thr(z)) continue;
+        state[c] = 1;
         const Eigen::Vector3d q = T_ref_cur * p;
         if (q.z() < 0.1) continue;
         const Eigen::Vector2d uv = camera.project(q);
@@ -1002,7 +991,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   std::vector<Eigen::Vector3f> segment_world;
   if (params_.segment_objects && cur.pose_valid && !state.empty() &&
       (!confirmed.empty() || (!held_.empty() && !segment_world_.empty()))) {
-    const SegmentGrid g{state, cp, grid_rays_, gw, gh, s, off};
+    const SegmentGrid g{state, cz, cp, gw, gh, s, off};
     const SegmentCounts sc =
         grow_segments(params_, frame.depth, camera, cur.T_world_cam, confirmed, !held_.empty(),
                       tested_, segment_world_, g, &out.pixel_mask, &segment_world);
