@@ -11,19 +11,13 @@
 
 #include "ds3d/geometric_motion.hpp"
 #include "ds3d/synth.hpp"
+#include "support/synth_frames.hpp"
 
 namespace {
 
 const std::vector<ds3d::synth::SynthFrame>& frames() {
-  static const std::vector<ds3d::synth::SynthFrame> f = [] {
-    ds3d::synth::SynthOptions o;
-    o.scenario = ds3d::synth::Scenario::kWalkingXyz;
-    o.num_frames = 30;
-    const ds3d::synth::SyntheticScene scene(o);
-    std::vector<ds3d::synth::SynthFrame> out;
-    for (std::size_t i = 0; i < scene.size(); ++i) out.push_back(scene.render(i));
-    return out;
-  }();
+  static const std::vector<ds3d::synth::SynthFrame> f =
+      ds3d::test::render_sequence(ds3d::synth::Scenario::kWalkingXyz, 30);
   return f;
 }
 

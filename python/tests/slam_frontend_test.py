@@ -4,16 +4,7 @@ import numpy as np
 import pytest
 
 import ds3d
-
-
-def textured(seed, h=480, w=640):
-    rng = np.random.default_rng(seed)
-    img = np.full((h, w, 3), 90, np.uint8)
-    for _ in range(1500):
-        y, x = rng.integers(0, h - 20), rng.integers(0, w - 20)
-        s = rng.integers(3, 20)
-        img[y:y + s, x:x + s] = rng.integers(0, 255, 3)
-    return img
+from textured_images import textured
 
 
 def test_static_camera_stays_at_origin():

@@ -12,6 +12,7 @@
 #include "ds3d/errors.hpp"
 #include "ds3d/synth.hpp"
 #include "ds3d/trajectory_metrics.hpp"
+#include "support/synth_frames.hpp"
 
 namespace {
 
@@ -22,14 +23,7 @@ using ds3d::slam::TrackState;
 
 // Short synthetic sequences (a second or two of CI each).
 std::vector<ds3d::synth::SynthFrame> render(ds3d::synth::Scenario s, int frames, std::uint64_t seed = 1) {
-  ds3d::synth::SynthOptions o;
-  o.scenario = s;
-  o.num_frames = frames;
-  o.seed = seed;
-  const ds3d::synth::SyntheticScene scene(o);
-  std::vector<ds3d::synth::SynthFrame> out;
-  for (std::size_t i = 0; i < scene.size(); ++i) out.push_back(scene.render(i));
-  return out;
+  return ds3d::test::render_sequence(s, frames, seed);
 }
 
 ds3d::Trajectory ground_truth(const std::vector<ds3d::synth::SynthFrame>& frames) {

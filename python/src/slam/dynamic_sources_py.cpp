@@ -90,29 +90,39 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
   return o;
 }
 
+// numpy images (viewed, not copied; the arrays are kept alive here) -> FrameInput, checked
+// against the camera; errors name `fn`.
+struct NumpyFrame {
+  py::array_t<std::uint8_t, py::array::c_style> rgb_keep;
+  py::array_t<std::uint16_t, py::array::c_style> depth_keep;
+  ds3d::slam::FrameInput in;
+  ds3d::PinholeCamera cam;
+
+  NumpyFrame(const char* fn, const py::object& rgb, const py::object& depth, double timestamp,
+             const py::object& camera, std::size_t index) {
+    DS3D_CHECK(std::isfinite(timestamp), fn, ": timestamp must be finite (got ", timestamp, ")");
+    in.index = index;
+    in.timestamp = timestamp;
+    in.rgb = pu::image_view(fn, rgb, rgb_keep);
+    in.depth = pu::depth_view(fn, depth, depth_keep);
+    cam = pu::camera_from(fn, camera);
+    pu::check_size(fn, "rgb", in.rgb, cam);
+    pu::check_size(fn, "depth", in.depth, cam);
+  }
+};
+
 // Shared by every source: numpy images -> FrameInput -> detect() without the GIL.
 DynamicObjects run_detect(DynamicObjectSource& src, const py::object& rgb, const py::object& depth,
                           double timestamp, const py::object& camera, std::size_t index) {
   const std::string name = "ds3d.DynamicObjectSource.detect (" + src.name() + ")";
-  const char* fn = name.c_str();
-  DS3D_CHECK(std::isfinite(timestamp), fn, ": timestamp must be finite (got ", timestamp, ")");
-  py::array_t<std::uint8_t, py::array::c_style> rgb_keep;
-  py::array_t<std::uint16_t, py::array::c_style> depth_keep;
-  ds3d::slam::FrameInput in;
-  in.index = index;
-  in.timestamp = timestamp;
-  in.rgb = pu::image_view(fn, rgb, rgb_keep);
-  in.depth = pu::depth_view(fn, depth, depth_keep);
-  const auto cam = pu::camera_from(fn, camera);
-  pu::check_size(fn, "rgb", in.rgb, cam);
-  pu::check_size(fn, "depth", in.depth, cam);
+  NumpyFrame f(name.c_str(), rgb, depth, timestamp, camera, index);
   const py::gil_scoped_release release;
   // Sources may keep the frame's images as history (GeometricMotionSource copies the depth it
   // keeps, but the interface does not promise that of every source): give them owned copies,
   // not views of numpy memory that Python may free or overwrite before the next call.
-  in.rgb = in.rgb.clone();
-  in.depth = in.depth.clone();
-  return src.detect(in, cam);
+  f.in.rgb = f.in.rgb.clone();
+  f.in.depth = f.in.depth.clone();
+  return src.detect(f.in, f.cam);
 }
 
 }  // namespace
@@ -239,22 +249,14 @@ void bind_dynamic_sources(py::module_& m) {
              const ds3d::slam::OrbFeatures& features, const DynamicObjects& objects,
              const py::object& camera, double timestamp, std::size_t index) {
             constexpr const char* fn = "ds3d.HdbscanMasker.mask";
-            DS3D_CHECK(std::isfinite(timestamp), fn, ": timestamp must be finite (got ", timestamp, ")");
-            py::array_t<std::uint8_t, py::array::c_style> rgb_keep;
-            py::array_t<std::uint16_t, py::array::c_style> depth_keep;
-            ds3d::slam::FrameInput in;
-            in.index = index;
-            in.timestamp = timestamp;
-            in.rgb = pu::image_view(fn, rgb, rgb_keep);
-            in.depth = pu::depth_view(fn, depth, depth_keep);
-            const auto cam = pu::camera_from(fn, camera);
-            pu::check_size(fn, "rgb", in.rgb, cam);
-            pu::check_size(fn, "depth", in.depth, cam);
-            if (!objects.pixel_mask.empty()) pu::check_size(fn, "objects.pixel_mask", objects.pixel_mask, cam);
+            const NumpyFrame f(fn, rgb, depth, timestamp, camera, index);
+            if (!objects.pixel_mask.empty()) {
+              pu::check_size(fn, "objects.pixel_mask", objects.pixel_mask, f.cam);
+            }
             std::vector<std::uint8_t> out;
             {
               const py::gil_scoped_release release;
-              out = masker.mask(in, cam, features, objects);
+              out = masker.mask(f.in, f.cam, features, objects);
             }
             py::array_t<bool> a(static_cast<py::ssize_t>(out.size()));
             for (std::size_t i = 0; i < out.size(); ++i) a.mutable_data()[i] = out[i] != 0;

@@ -1,0 +1,27 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#pragma once
+// Every frame of a generated sequence (ds3d::synth), for SLAM-side tests and benchmarks.
+
+#include <cstdint>
+#include <vector>
+
+#include "ds3d/synth.hpp"
+
+namespace ds3d::test {
+
+/// Renders all `frames` frames of `scenario` (seed `seed`, the generator's other defaults).
+inline std::vector<synth::SynthFrame> render_sequence(synth::Scenario scenario, int frames,
+                                                      std::uint64_t seed = 1) {
+  synth::SynthOptions o;
+  o.scenario = scenario;
+  o.num_frames = frames;
+  o.seed = seed;
+  const synth::SyntheticScene scene(o);
+  std::vector<synth::SynthFrame> out;
+  out.reserve(scene.size());
+  for (std::size_t i = 0; i < scene.size(); ++i) out.push_back(scene.render(i));
+  return out;
+}
+
+}  // namespace ds3d::test
