@@ -58,8 +58,8 @@ void GeometricMotionParams::validate() const {
              ": max_object_width must be > 0 (got ", max_object_width, ")");
   DS3D_CHECK(std::isfinite(max_speed) && max_speed >= 0, f, ": max_speed must be >= 0 (got ",
              max_speed, ")");
-  DS3D_CHECK(std::isfinite(min_band_support) && min_band_support > 0 && min_band_support <= 1, f,
-             ": min_band_support must be in (0, 1] (got ", min_band_support, ")");
+  DS3D_CHECK(std::isfinite(min_band_support) && min_band_support >= 0 && min_band_support <= 1, f,
+             ": min_band_support must be in [0, 1] (got ", min_band_support, ")");
   DS3D_CHECK(std::isfinite(image_scale) && image_scale > 0 && image_scale <= 1, f,
              ": image_scale must be in (0, 1] (got ", image_scale, ")");
   DS3D_CHECK(std::isfinite(max_depth) && max_depth > 0, f, ": max_depth must be > 0 (got ",
@@ -874,48 +874,53 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
       ++num_comp;
       if (area < params_.min_warp_area) continue;
       if (cand.box.size().maxCoeff() > params_.max_object_size) continue;
-      // Support, as for keypoints: most tested cells in its rectangle and depth range moved in.
-      // Pose or registration errors flag scattered cells along static edges, a mover a block.
-      const double dz = 3.0 * sigma_z(z1, 0.0);
-      int in_region = 0;
-      int moved = 0;
-      for (int j = j0; j <= j1; ++j) {
-        for (int i = i0; i <= i1; ++i) {
-          const auto c = static_cast<std::size_t>(j * gw + i);
-          if (state[c] < 2 || cz[c] < z0 - dz || cz[c] > z1 + dz) continue;
-          ++in_region;
-          moved += state[c] >= 3 ? 1 : 0;
-        }
-      }
-      // A mover seen against its own body (a band at its leading or trailing edge, where the
-      // rest of the body in the rectangle is consistent) fails that test; its band is solid
-      // though, while flags from pose errors along static edges form lines one or two cells
-      // wide. So a component also passes when most tested cells of its footprint (the cells
-      // within one cell of it) moved.
-      int foot = 0;
-      int foot_moved = 0;
-      const int id = num_comp - 1;
-      for (int j = std::max(0, j0 - 1); j <= std::min(gh - 1, j1 + 1); ++j) {
-        for (int i = std::max(0, i0 - 1); i <= std::min(gw - 1, i1 + 1); ++i) {
-          const auto c = static_cast<std::size_t>(j * gw + i);
-          if (state[c] < 2) continue;
-          bool near = false;
-          for (int dj = -1; dj <= 1 && !near; ++dj) {
-            for (int di = -1; di <= 1 && !near; ++di) {
-              const int ii = i + di;
-              const int jj = j + dj;
-              near = ii >= 0 && jj >= 0 && ii < gw && jj < gh &&
-                     comp[static_cast<std::size_t>(jj * gw + ii)] == id;
-            }
+      // Optional support test (min_band_support > 0; off by default, see the header): at the
+      // pose's own baseline (warp_gap 2) static scenes give almost no components, and the test
+      // rejected most of a walker's thin leading-edge bands.
+      if (params_.min_band_support > 0.0) {
+        // Support, as for keypoints: most tested cells in its rectangle and depth range moved in.
+        // Pose or registration errors flag scattered cells along static edges, a mover a block.
+        const double dz = 3.0 * sigma_z(z1, 0.0);
+        int in_region = 0;
+        int moved = 0;
+        for (int j = j0; j <= j1; ++j) {
+          for (int i = i0; i <= i1; ++i) {
+            const auto c = static_cast<std::size_t>(j * gw + i);
+            if (state[c] < 2 || cz[c] < z0 - dz || cz[c] > z1 + dz) continue;
+            ++in_region;
+            moved += state[c] >= 3 ? 1 : 0;
           }
-          if (!near) continue;
-          ++foot;
-          foot_moved += state[c] >= 3 ? 1 : 0;
         }
-      }
-      if (moved < params_.min_support * in_region &&
-          foot_moved < params_.min_band_support * foot) {
-        continue;
+        // A mover seen against its own body (a band at its leading or trailing edge, where the
+        // rest of the body in the rectangle is consistent) fails that test; its band is solid
+        // though, while flags from pose errors along static edges form lines one or two cells
+        // wide. So a component also passes when most tested cells of its footprint (the cells
+        // within one cell of it) moved.
+        int foot = 0;
+        int foot_moved = 0;
+        const int id = num_comp - 1;
+        for (int j = std::max(0, j0 - 1); j <= std::min(gh - 1, j1 + 1); ++j) {
+          for (int i = std::max(0, i0 - 1); i <= std::min(gw - 1, i1 + 1); ++i) {
+            const auto c = static_cast<std::size_t>(j * gw + i);
+            if (state[c] < 2) continue;
+            bool near = false;
+            for (int dj = -1; dj <= 1 && !near; ++dj) {
+              for (int di = -1; di <= 1 && !near; ++di) {
+                const int ii = i + di;
+                const int jj = j + dj;
+                near = ii >= 0 && jj >= 0 && ii < gw && jj < gh &&
+                       comp[static_cast<std::size_t>(jj * gw + ii)] == id;
+              }
+            }
+            if (!near) continue;
+            ++foot;
+            foot_moved += state[c] >= 3 ? 1 : 0;
+          }
+        }
+        if (moved < params_.min_support * in_region &&
+            foot_moved < params_.min_band_support * foot) {
+          continue;
+        }
       }
       ++stats_.num_warp_candidates;
       found.push_back(std::move(cand));

@@ -46,7 +46,7 @@ using ds3d::slam::GeometricMotionStats;
   X(min_cluster_size, "HDBSCAN min_cluster_size (moving keypoints), >= 2")                        \
   X(min_samples, "HDBSCAN min_samples, >= 1")                                                     \
   X(min_support, "moving / tested keypoints in a cluster's region, in (0, 1]")                    \
-  X(min_band_support, "warp components pass the support test when this share of the tested cells within one cell moved, in (0, 1]") \
+  X(min_band_support, "support test of warp components (share of the tested cells within one cell that moved), in [0, 1]; 0 (default) = none") \
   X(max_object_size, "clusters larger than this in x, y or z are not objects [m], > 0")           \
   X(max_object_width, "widest object segment along the floor [m], > 0")                            \
   X(box_margin, "object boxes grow by this in x, y and z [m], >= 0")                              \
