@@ -6,7 +6,10 @@
 # Usage: scripts/train_htx.sh [WORK_DIR]   (default /work/htx_data; keep it outside git)
 # Environment: BUILD (default build), THREADS (torch threads per run, default 1), NICE (default 10),
 #   TRAIN_FRAMES per seed (default 1500, two seeds), STEPS (default 4000), BATCH (default 4),
-#   MAX_MINUTES (training time budget, default 100; the run checkpoints and can be resumed).
+#   MAX_MINUTES (training time budget, default 100; the run checkpoints and can be resumed),
+#   ABLATION_STEP (default STEPS/2; 0 = none): the part-head ablation arm, run in parallel with
+#   the main run: the same schedule, seed and data order with part loss weight 0, stopped at
+#   ABLATION_STEP and compared with the main run's snapshot at that step.
 set -euo pipefail
 WORK=${1:-/work/htx_data}
 BUILD=${BUILD:-build}
@@ -16,6 +19,7 @@ TRAIN_FRAMES=${TRAIN_FRAMES:-1500}
 STEPS=${STEPS:-4000}
 BATCH=${BATCH:-4}
 MAX_MINUTES=${MAX_MINUTES:-100}
+ABLATION_STEP=${ABLATION_STEP:-$((STEPS / 2))}
 PY="nice -n ${NICE} /usr/bin/python3"
 export PYTHONPATH="${BUILD}/python${PYTHONPATH:+:${PYTHONPATH}}"
 mkdir -p "${WORK}"
@@ -27,9 +31,17 @@ wait
 ${PY} -m ds3d.htx.make_dataset --out "${WORK}/val" --split val --frames 200 --seed 1
 ${PY} -m ds3d.htx.make_dataset --out "${WORK}/test" --split test --frames 400 --seed 1
 
-# 2. training (resumes from ${WORK}/runs/main/checkpoint.pt when present)
-${PY} -m ds3d.htx.train --data "${WORK}/train" --out "${WORK}/runs/main" --steps "${STEPS}" \
-  --batch "${BATCH}" --lr 1e-3 --warmup 100 --threads "${THREADS}" --max-minutes "${MAX_MINUTES}"
+# 2. training (resumes from ${WORK}/runs/*/checkpoint.pt when present); the ablation arm beside it
+TRAIN_ARGS=(--data "${WORK}/train" --steps "${STEPS}" --batch "${BATCH}" --lr 1e-3 --warmup 100
+            --threads "${THREADS}" --max-minutes "${MAX_MINUTES}")
+SNAP=()
+if [ "${ABLATION_STEP}" -gt 0 ]; then
+  SNAP=(--snapshot-steps "${ABLATION_STEP}")
+  ${PY} -m ds3d.htx.train "${TRAIN_ARGS[@]}" --out "${WORK}/runs/no_part" --part-weight 0 \
+    --stop-step "${ABLATION_STEP}" > "${WORK}/no_part.log" 2>&1 &
+fi
+${PY} -m ds3d.htx.train "${TRAIN_ARGS[@]}" --out "${WORK}/runs/main" "${SNAP[@]}"
+wait
 
 # 3. deployment threshold on val, metrics on test, weights file
 THR=$(${PY} -m ds3d.htx.evaluate threshold --model "${WORK}/runs/main/checkpoint.pt" --data "${WORK}/val" |
@@ -43,3 +55,15 @@ ${PY} -m ds3d.htx.evaluate tum --model models/htx_lite_fast.safetensors \
 ${PY} -m ds3d.htx.evaluate overlays --model models/htx_lite_fast.safetensors \
   --data ../shared/data/bonn_crowd_first300 --out "${WORK}/overlays" --frames 0,60,120,180,240,299
 sha256sum models/htx_lite_fast.safetensors
+
+# 4. part-head ablation: both arms at ABLATION_STEP, each at its own val threshold, on the test split
+if [ "${ABLATION_STEP}" -gt 0 ]; then
+  for arm in "main/checkpoint_${ABLATION_STEP}.pt:with_part" "no_part/checkpoint.pt:no_part"; do
+    ckpt="${WORK}/runs/${arm%%:*}"
+    name="${arm##*:}"
+    thr=$(${PY} -m ds3d.htx.evaluate threshold --model "${ckpt}" --data "${WORK}/val" |
+          ${PY} -c 'import json,sys; print(json.load(sys.stdin)["result"]["threshold"])')
+    ${PY} -m ds3d.htx.evaluate synthetic --model "${ckpt}" --data "${WORK}/test" --threshold "${thr}" \
+      --json "${WORK}/ablation_${name}.json"
+  done
+fi

@@ -8,10 +8,12 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <string>
 #include <system_error>
+#include <utility>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
@@ -28,9 +30,6 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr float kNear = 0.05F;
-constexpr double kRoomX = 4.5;
-constexpr double kRoomY = 5.0;
-constexpr double kRoomZ = 2.8;
 constexpr int kTex = 256;  // texture size (power of two: wrap with a mask)
 constexpr std::uint8_t kNumParts = 10;
 
@@ -273,6 +272,13 @@ void SynthOptions::validate() const {
   camera.validate(kFn);
   DS3D_CHECK(!camera.has_distortion(), kFn, ": camera must have no distortion");
   DS3D_CHECK(camera.width <= 8192 && camera.height <= 8192, kFn, ": image larger than 8192 px");
+  DS3D_CHECK(room_size.allFinite() && room_size.x() >= 3.5 && room_size.x() <= 12 &&
+                 room_size.y() >= 3 && room_size.y() <= 12 && room_size.z() >= 2.2 &&
+                 room_size.z() <= 5,
+             kFn, ": room_size must be in [3.5, 12] x [3, 12] x [2.2, 5] m (got ", room_size.x(),
+             ", ", room_size.y(), ", ", room_size.z(), ")");
+  DS3D_CHECK(extra_furniture >= 0 && extra_furniture <= 12, kFn,
+             ": extra_furniture must be in [0, 12] (got ", extra_furniture, ")");
 }
 
 const std::vector<std::string>& part_names() {
@@ -306,7 +312,7 @@ struct SyntheticScene::Impl {
     Eigen::Isometry3d base = Eigen::Isometry3d::Identity();
     // Tilted 12 degrees down, like a hand-held Kinect looking at people and furniture.
     base.linear() = r_base * Eigen::AngleAxisd(-0.21, Eigen::Vector3d::UnitX()).toRotationMatrix();
-    base.translation() = Eigen::Vector3d(0.5, kRoomY / 2, 1.4);
+    base.translation() = Eigen::Vector3d(0.5, opt.room_size.y() / 2, 1.4);
     // A hand-held wobble on every trajectory (mm, sub-degree).
     const Eigen::Vector3d wobble(0.004 * std::sin(2.1 * t), 0.003 * std::sin(1.7 * t + 1),
                                  0.004 * std::sin(1.3 * t + 2));
@@ -342,7 +348,7 @@ struct SyntheticScene::Impl {
         // Camera on a sphere of radius 1 m around a point 1 m ahead, looking at it.
         const double az = 0.6 * std::sin(w * t / 12.0);
         const double el = 0.25 + 0.2 * std::sin(w * t / 9.0);
-        const Eigen::Vector3d centre(1.5, kRoomY / 2, 1.2);
+        const Eigen::Vector3d centre(1.5, opt.room_size.y() / 2, 1.2);
         const Eigen::Vector3d eye =
             centre + Eigen::Vector3d(-std::cos(el) * std::cos(az), -std::cos(el) * std::sin(az),
                                      std::sin(el));
@@ -508,10 +514,11 @@ struct SyntheticScene::Impl {
     const int first_furniture = static_cast<int>(textures.size());
     for (int f = 0; f < 6; ++f) textures.push_back(make_texture(rng, base_col(), 120, 4, 30));
 
-    Mesh room;
-    const float X = static_cast<float>(kRoomX);
-    const float Y = static_cast<float>(kRoomY);
-    const float Z = static_cast<float>(kRoomZ);
+    const double room_x = opt.room_size.x();
+    const double room_y = opt.room_size.y();
+    const auto X = static_cast<float>(room_x);
+    const auto Y = static_cast<float>(room_y);
+    const auto Z = static_cast<float>(opt.room_size.z());
     const auto quad_mesh = [&](int mat, const Eigen::Vector3f& o, const Eigen::Vector3f& e1,
                                const Eigen::Vector3f& e2, float density) {
       Mesh m;
@@ -535,12 +542,12 @@ struct SyntheticScene::Impl {
       const double hgt = uni(0.45, 1.9);
       Eigen::Vector3d lo;
       if (f < 3) {  // far wall
-        lo = Eigen::Vector3d(kRoomX - d - 0.02, 0.3 + f * 1.5 + uni(0, 0.4), 0);
+        lo = Eigen::Vector3d(room_x - d - 0.02, 0.3 + f * 1.5 * (room_y / 5.0) + uni(0, 0.4), 0);
         add_box(m, lo.cast<float>(), (lo + Eigen::Vector3d(d, w, hgt)).cast<float>(), 130.0F);
       } else {  // side walls, beyond x = 1.4 so they stay in view
         const bool left = f % 2 == 1;
-        const double x0 = 1.4 + (f - 3) * 0.9 + uni(0, 0.3);
-        lo = Eigen::Vector3d(x0, left ? kRoomY - d - 0.02 : 0.02, 0);
+        const double x0 = 1.4 + (f - 3) * 0.9 * (room_x / 4.5) + uni(0, 0.3);
+        lo = Eigen::Vector3d(x0, left ? room_y - d - 0.02 : 0.02, 0);
         add_box(m, lo.cast<float>(), (lo + Eigen::Vector3d(w, d, hgt)).cast<float>(), 130.0F);
       }
       static_meshes.push_back(std::move(m));
@@ -566,8 +573,8 @@ struct SyntheticScene::Impl {
           make_texture(rng, cv::Scalar(uni(60, 150), uni(90, 170), uni(140, 220)), 12, 4, 12));
       if (sitting) {
         // Seats spread across the view, 1.8-3.2 m ahead, facing the camera +- 30 deg.
-        h.a = Eigen::Vector2d(uni(2.2, 3.4),
-                              kRoomY / 2 + (k - (n - 1) / 2.0) * 1.0 + uni(-0.15, 0.15));
+        h.a = Eigen::Vector2d(uni(2.2, room_x - 1.1),
+                              room_y / 2 + (k - (n - 1) / 2.0) * 1.0 + uni(-0.15, 0.15));
         h.yaw_sit = kPi + uni(-0.5, 0.5);
         Mesh seat;
         seat.material = first_furniture + (k % 6);
@@ -585,13 +592,104 @@ struct SyntheticScene::Impl {
       } else {
         // Walk back and forth across the view, 1.5-3.5 m ahead.
         for (int tries = 0; tries < 100; ++tries) {
-          h.a = Eigen::Vector2d(uni(1.5, 3.6), uni(0.9, 4.1));
-          h.b = Eigen::Vector2d(uni(1.5, 3.6), uni(0.9, 4.1));
+          h.a = Eigen::Vector2d(uni(1.5, room_x - 0.9), uni(0.9, room_y - 0.9));
+          h.b = Eigen::Vector2d(uni(1.5, room_x - 0.9), uni(0.9, room_y - 0.9));
           if ((h.b - h.a).norm() > 1.8) break;
         }
         h.speed = uni(0.7, 1.3);
       }
       humans.push_back(h);
+    }
+    if (opt.extra_furniture > 0) add_clutter(room_x, room_y);
+  }
+
+  // Distance [m] on the floor from p to the nearest walker path or seat.
+  [[nodiscard]] double distance_to_humans(const Eigen::Vector2d& p) const {
+    double best = std::numeric_limits<double>::infinity();
+    for (const Human& h : humans) {
+      if (h.sitting) {
+        best = std::min(best, (p - h.a).norm());
+        continue;
+      }
+      const Eigen::Vector2d ab = h.b - h.a;
+      const double s = std::clamp((p - h.a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
+      best = std::min(best, (p - (h.a + s * ab)).norm());
+    }
+    return best;
+  }
+
+  // opt.extra_furniture chairs, tables and floor lamps, from a random stream of their own.
+  void add_clutter(double room_x, double room_y) {
+    std::mt19937_64 rng(mix(opt.seed ^ 0x5eed'c1a7'7e12'0001ULL));
+    std::uniform_real_distribution<double> u01(0, 1);
+    const auto uni = [&](double a, double b) { return a + (b - a) * u01(rng); };
+    const auto box = [](Mesh& m, double x0, double y0, double z0, double x1, double y1, double z1) {
+      add_box(m, Eigen::Vector3f(static_cast<float>(x0), static_cast<float>(y0),
+                                 static_cast<float>(z0)),
+              Eigen::Vector3f(static_cast<float>(x1), static_cast<float>(y1),
+                              static_cast<float>(z1)),
+              150.0F);
+    };
+    std::vector<std::pair<Eigen::Vector2d, double>> placed;  // centre, radius
+    for (int f = 0; f < opt.extra_furniture; ++f) {
+      const int kind = static_cast<int>(u01(rng) * 3);  // 0 chair, 1 table, 2 floor lamp
+      Mesh m;  // built around the origin, then turned and moved
+      m.material = static_cast<int>(textures.size());
+      textures.push_back(make_texture(
+          rng, cv::Scalar(uni(40, 210), uni(40, 210), uni(40, 210)), 120, 4, 30));
+      double radius = 0;
+      if (kind == 0) {
+        const double w = uni(0.40, 0.50);
+        const double hs = uni(0.42, 0.50);
+        const double hb = uni(0.35, 0.55);
+        const double l = 0.035;
+        for (const double sx : {-1.0, 1.0}) {
+          for (const double sy : {-1.0, 1.0}) {
+            const double cx = sx * (w / 2 - l);
+            const double cy = sy * (w / 2 - l);
+            box(m, cx - l / 2, cy - l / 2, 0, cx + l / 2, cy + l / 2, hs - 0.05);
+          }
+        }
+        box(m, -w / 2, -w / 2, hs - 0.05, w / 2, w / 2, hs);
+        box(m, -w / 2, -w / 2, hs, -w / 2 + 0.04, w / 2, hs + hb);
+        radius = 0.75 * w;
+      } else if (kind == 1) {
+        const double a = uni(0.7, 1.6);
+        const double b = uni(0.6, 0.9);
+        const double h = uni(0.70, 0.78);
+        const double l = 0.05;
+        for (const double sx : {-1.0, 1.0}) {
+          for (const double sy : {-1.0, 1.0}) {
+            const double cx = sx * (a / 2 - l);
+            const double cy = sy * (b / 2 - l);
+            box(m, cx - l / 2, cy - l / 2, 0, cx + l / 2, cy + l / 2, h - 0.04);
+          }
+        }
+        box(m, -a / 2, -b / 2, h - 0.04, a / 2, b / 2, h);
+        radius = 0.5 * std::hypot(a, b);
+      } else {
+        const double h = uni(1.4, 1.8);
+        box(m, -0.15, -0.15, 0, 0.15, 0.15, 0.03);
+        box(m, -0.015, -0.015, 0.03, 0.015, 0.015, h - 0.25);
+        box(m, -0.16, -0.16, h - 0.25, 0.16, 0.16, h);
+        radius = 0.25;
+      }
+      // A free spot: inside the room, clear of the other clutter and 0.5 m from the people.
+      bool found = false;
+      Eigen::Vector2d c;
+      for (int tries = 0; tries < 50 && !found; ++tries) {
+        c = Eigen::Vector2d(uni(1.2, room_x - 0.3 - radius), uni(0.3 + radius, room_y - 0.3 - radius));
+        found = distance_to_humans(c) > 0.5 + radius;
+        for (const auto& [q, r] : placed) found = found && (c - q).norm() > r + radius + 0.2;
+      }
+      if (!found) continue;
+      placed.emplace_back(c, radius);
+      const double yaw = uni(-kPi, kPi);
+      const Eigen::Matrix3f rot =
+          Eigen::AngleAxisf(static_cast<float>(yaw), Eigen::Vector3f::UnitZ()).toRotationMatrix();
+      const Eigen::Vector3f t(static_cast<float>(c.x()), static_cast<float>(c.y()), 0);
+      for (auto& p : m.pos) p = rot * p + t;
+      static_meshes.push_back(std::move(m));
     }
   }
 

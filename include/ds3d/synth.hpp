@@ -13,7 +13,9 @@
 /// Kinect-like: Gaussian noise sigma = 1.425e-3 z^2 m (Khoshelham & Elberink 2012), disparity
 /// quantised to 1/8 pixel (baseline 7.5 cm), holes at depth discontinuities and beyond 4.5 m.
 ///
-/// World frame: z up, the floor is z = 0, the room spans [0, 4.5] x [0, 5] x [0, 2.8] m.
+/// World frame: z up, the floor is z = 0, the room spans [0, X] x [0, Y] x [0, Z] m with
+/// (X, Y, Z) = SynthOptions::room_size (default 4.5 x 5 x 2.8). The camera starts 0.5 m from the
+/// x = 0 wall at mid-width, looking along +x; walkers and seats are placed relative to the room.
 /// Camera frame and poses follow TUM (x right, y down, z forward; T_world_cam camera-to-world).
 
 #include <cstdint>
@@ -58,6 +60,15 @@ struct SynthOptions {
   PinholeCamera camera = PinholeCamera{};
   bool depth_noise = true;   ///< false: exact depth (still x depth_scale, rounded), no holes
   bool write_parts = false;  ///< also write per-pixel human id and part locations (see below)
+  /// Room extent along world x (depth ahead of the camera), y (width) and z (height) [m]:
+  /// x in [3.5, 12], y in [3, 12], z in [2.2, 5]. The default gives the original room, and with
+  /// it and extra_furniture = 0 the frames are bit-identical to earlier versions.
+  Eigen::Vector3d room_size = Eigen::Vector3d(4.5, 5.0, 2.8);
+  /// Extra free-standing chairs (seat, back, four legs) and tables (top, four legs) at random
+  /// positions and headings on the floor, 0 ... 12, kept 0.5 m from the walkers' paths and seats:
+  /// clutter with legs and backs, the furniture a person detector must not mistake for people.
+  /// Drawn from their own random stream, so the rest of the scene does not change with it.
+  int extra_furniture = 0;
   void validate() const;     ///< throws ds3d::InvalidArgument naming the bad field
 };
 

@@ -21,21 +21,27 @@ SCENARIOS = (
 
 
 def generate(out_dir, scenario="walking_xyz", frames=30, seed=1, humans=-1, fps=30.0,
-             depth_noise=True, parts=False):
+             depth_noise=True, parts=False, room_size=(4.5, 5.0, 2.8), furniture=0):
     """Writes a TUM-layout folder (rgb/, depth/, mask/, lists, groundtruth.txt, camera.txt,
-    boxes.jsonl; parts/ and parts_loc/ with parts=True). Returns a summary dict.
-    Raises ValueError for bad arguments, RuntimeError when writing fails."""
+    boxes.jsonl; parts/ and parts_loc/ with parts=True). room_size: the room's (x, y, z) extent
+    [m], in [3.5, 12] x [3, 12] x [2.2, 5]; furniture: 0-12 extra chairs, tables and floor lamps.
+    Returns a summary dict. Raises ValueError for bad arguments, RuntimeError when writing fails."""
     return _ds3d._synth_generate(str(out_dir), scenario, int(frames), int(seed), int(humans),
-                                 float(fps), bool(depth_noise), bool(parts))
+                                 float(fps), bool(depth_noise), bool(parts),
+                                 [float(v) for v in room_size], int(furniture))
 
 
 class Scene:
     """A procedural scene rendered frame by frame, deterministic by seed."""
 
     def __init__(self, scenario="walking_xyz", frames=30, seed=1, humans=-1, fps=30.0,
-                 depth_noise=True):
+                 depth_noise=True, room_size=(4.5, 5.0, 2.8), furniture=0):
+        """room_size: (x, y, z) extent of the room [m] (x ahead of the start pose, y across, z up),
+        in [3.5, 12] x [3, 12] x [2.2, 5]; furniture: 0-12 extra free-standing chairs, tables
+        and floor lamps (their own random stream: the rest of the scene does not change)."""
         self._scene = _ds3d._SyntheticScene(scenario, int(frames), int(seed), int(humans),
-                                            float(fps), bool(depth_noise))
+                                            float(fps), bool(depth_noise),
+                                            [float(v) for v in room_size], int(furniture))
 
     def __len__(self):
         return len(self._scene)

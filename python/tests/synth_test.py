@@ -34,3 +34,21 @@ def test_presets_and_bad_arguments():
         ds3d.synth.Scene("walking_xyz", frames=0)
     with pytest.raises(RuntimeError):
         ds3d.RgbdDataset("/nonexistent/folder")
+
+
+def test_room_size_and_furniture():
+    base = ds3d.synth.Scene("walking_xyz", frames=10, seed=4).render(5)
+    same = ds3d.synth.Scene("walking_xyz", frames=10, seed=4, room_size=(4.5, 5.0, 2.8),
+                            furniture=0).render(5)
+    np.testing.assert_array_equal(base["rgb"], same["rgb"])
+    clutter = ds3d.synth.Scene("walking_xyz", frames=10, seed=4, furniture=6).render(5)
+    assert [b["center"] for b in clutter["boxes"]] == [b["center"] for b in base["boxes"]]
+    assert (clutter["depth"] != base["depth"]).sum() > 1000
+    big = ds3d.synth.Scene("static_room", frames=1, seed=4, room_size=(6.0, 7.0, 3.0)).render(0)
+    assert not np.array_equal(big["depth"], ds3d.synth.Scene("static_room", frames=1, seed=4).render(0)["depth"])
+    with pytest.raises(ValueError, match="room_size"):
+        ds3d.synth.Scene("walking_xyz", room_size=(2.0, 5.0, 2.8))
+    with pytest.raises(ValueError, match="room_size"):
+        ds3d.synth.Scene("walking_xyz", room_size=(4.5, 5.0))
+    with pytest.raises(ValueError, match="extra_furniture"):
+        ds3d.synth.Scene("walking_xyz", furniture=20)

@@ -1,9 +1,10 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // ds3d-synth OUT_DIR --scenario NAME --frames N --seed S [--humans K] [--fps F] [--parts]
-//            [--no-noise]: writes a synthetic dynamic RGB-D sequence in TUM layout.
+//            [--no-noise] [--room X,Y,Z] [--furniture N]: writes a synthetic dynamic RGB-D sequence in TUM layout.
 #include <cstdlib>
 #include <exception>
+#include <stdexcept>
 #include <iostream>
 #include <string>
 
@@ -14,7 +15,7 @@ namespace {
 int usage(const char* msg) {
   std::cerr << "ds3d-synth: " << msg << "\n"
             << "usage: ds3d-synth OUT_DIR [--scenario NAME] [--frames N] [--seed S] [--humans K]\n"
-            << "                  [--fps F] [--parts] [--no-noise]\n"
+            << "                  [--fps F] [--parts] [--no-noise] [--room X,Y,Z] [--furniture N]\n"
             << "scenarios: static_room walking_static walking_xyz walking_halfsphere walking_rpy\n"
             << "           sitting_static sitting_xyz\n";
   return 2;
@@ -51,6 +52,22 @@ int main(int argc, char** argv) {
         opt.fps = std::stod(value());
       } else if (a == "--parts") {
         opt.write_parts = true;
+      } else if (a == "--room") {
+        const std::string v = value();
+        double xyz[3];
+        std::size_t pos = 0;
+        for (int k = 0; k < 3; ++k) {
+          const std::size_t end = k < 2 ? v.find(',', pos) : v.size();
+          if (end == std::string::npos) throw std::invalid_argument("--room: expected X,Y,Z, got '" + v + "'");
+          std::size_t used = 0;
+          const std::string part = v.substr(pos, end - pos);
+          xyz[k] = std::stod(part, &used);
+          if (used != part.size()) throw std::invalid_argument("--room: not a number: '" + part + "'");
+          pos = end + 1;
+        }
+        opt.room_size = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);
+      } else if (a == "--furniture") {
+        opt.extra_furniture = static_cast<int>(parse_int(a, value()));
       } else if (a == "--no-noise") {
         opt.depth_noise = false;
       } else if (a == "-h" || a == "--help") {

@@ -7,7 +7,10 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <vector>
 #include <filesystem>
 #include <string>
 
@@ -50,6 +53,12 @@ TEST(Synth, RejectsBadOptions) {
   o.camera.k1 = 0.1;
   EXPECT_THROW(SyntheticScene{o}, ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::synth::parse_scenario("walking"), ds3d::InvalidArgument);
+  EXPECT_THROW(SyntheticScene({.room_size = Eigen::Vector3d(3.0, 5, 2.8)}), ds3d::InvalidArgument);
+  EXPECT_THROW(SyntheticScene({.room_size = Eigen::Vector3d(4.5, 5, 9)}), ds3d::InvalidArgument);
+  EXPECT_THROW(SyntheticScene({.room_size = Eigen::Vector3d(4.5, NAN, 2.8)}),
+               ds3d::InvalidArgument);
+  EXPECT_THROW(SyntheticScene({.extra_furniture = 13}), ds3d::InvalidArgument);
+  EXPECT_THROW(SyntheticScene({.extra_furniture = -1}), ds3d::InvalidArgument);
   for (const char* n : {"static_room", "walking_static", "walking_xyz", "walking_halfsphere",
                         "walking_rpy", "sitting_static", "sitting_xyz"}) {
     EXPECT_EQ(ds3d::synth::scenario_name(ds3d::synth::parse_scenario(n)), n);
@@ -102,6 +111,78 @@ TEST(Synth, MasksMatchHumansAndBoxes) {
     EXPECT_LE(max_part, 10.0);
     EXPECT_EQ(cv::countNonZero(f.part_id), total);
   }
+}
+
+TEST(Synth, RoomSizeMovesTheWallsAndKeepsPeopleInside) {
+  // The empty room seen with exact depth: a shallower room brings the far wall nearer.
+  const auto median_depth = [](const Eigen::Vector3d& room) {
+    const auto f = SyntheticScene({.scenario = Scenario::kStaticRoom,
+                                   .num_frames = 1,
+                                   .depth_noise = false,
+                                   .room_size = room})
+                       .render(0);
+    std::vector<float> z;
+    for (int y = 0; y < f.depth_true.rows; ++y) {
+      for (int x = 0; x < f.depth_true.cols; ++x) {
+        if (f.depth_true.at<float>(y, x) > 0) z.push_back(f.depth_true.at<float>(y, x));
+      }
+    }
+    std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(z.size() / 2), z.end());
+    return z[z.size() / 2];
+  };
+  EXPECT_LT(median_depth(Eigen::Vector3d(3.6, 5, 2.8)) + 0.3F,
+            median_depth(Eigen::Vector3d(4.5, 5, 2.8)));
+  // Walkers of a large room walk inside it, over the whole room.
+  const Eigen::Vector3d room(7.0, 9.0, 3.0);
+  const SyntheticScene big({.scenario = Scenario::kWalkingStatic,
+                            .num_frames = 900,
+                            .seed = 5,
+                            .num_humans = 4,
+                            .room_size = room});
+  double max_y = 0;
+  for (std::size_t i = 0; i < 900; i += 60) {
+    for (const auto& b : big.render(i).boxes) {
+      EXPECT_GT(b.center.x(), 0.5);
+      EXPECT_LT(b.center.x(), room.x() - 0.5);
+      EXPECT_GT(b.center.y(), 0.5);
+      EXPECT_LT(b.center.y(), room.y() - 0.5);
+      max_y = std::max(max_y, b.center.y());
+    }
+  }
+  EXPECT_GT(max_y, 5.0);  // beyond the default room's width
+}
+
+TEST(Synth, ExtraFurnitureLeavesPeopleAndCameraAlone) {
+  const SynthOptions base{
+      .scenario = Scenario::kWalkingXyz, .num_frames = 300, .seed = 9, .num_humans = 3};
+  SynthOptions cluttered = base;
+  cluttered.extra_furniture = 8;
+  const SyntheticScene a(base);
+  const SyntheticScene b(cluttered);
+  int nearer = 0;
+  for (const std::size_t i : {std::size_t{0}, std::size_t{150}, std::size_t{299}}) {
+    const auto fa = a.render(i);
+    const auto fb = b.render(i);
+    EXPECT_TRUE(fa.T_world_cam.isApprox(fb.T_world_cam, 0.0));
+    ASSERT_EQ(fa.boxes.size(), fb.boxes.size());
+    for (std::size_t k = 0; k < fa.boxes.size(); ++k) {
+      EXPECT_EQ(fa.boxes[k].center, fb.boxes[k].center);  // the same walks
+      EXPECT_EQ(fa.boxes[k].size, fb.boxes[k].size);
+    }
+    // Furniture only ever stands in front of the static scene: where a pixel got nearer, it is
+    // not a person's in either scene.
+    for (int y = 0; y < fa.depth_true.rows; ++y) {
+      for (int x = 0; x < fa.depth_true.cols; ++x) {
+        const float za = fa.depth_true.at<float>(y, x);
+        const float zb = fb.depth_true.at<float>(y, x);
+        if (zb > 0 && (za == 0 || zb < za - 0.05F)) {
+          ++nearer;
+          EXPECT_EQ(fb.human_id.at<std::uint8_t>(y, x), 0);
+        }
+      }
+    }
+  }
+  EXPECT_GT(nearer, 2000);  // the furniture is in view
 }
 
 TEST(Synth, StaticRoomHasNoHumansAndSittingHumansSit) {

@@ -33,6 +33,10 @@ MAX_POINTS = 4096          # spec §6.1 step 5: at most this many points go to t
 MIN_BOX_POINTS = 5         # a humanoid is a label when it holds >= this many input points
 TALL = 1.85                # [m] test-only body heights (train scenes never hold taller walkers)
 HUMAN_CLASS = 0
+# Room extent per scene, drawn uniformly: x (ahead of the start pose), y (across), z (height) [m];
+# the synthetic sensor has no depth beyond 4.5 m, so larger rooms mostly add empty far space.
+ROOM_RANGE = ((3.8, 6.5), (4.0, 7.5), (2.5, 3.2))
+MAX_EXTRA_FURNITURE = 6    # free-standing chairs / tables / floor lamps per scene: 0 ... this
 
 # Preprocess settings: the defaults of ds3d.preprocess (include/ds3d/preprocess.hpp), i.e. what
 # inference calls. Stored in every shard so a mismatch can be detected.
@@ -328,8 +332,10 @@ def scene_seeds(split, count, base_seed):
 def generate(out_dir, split, frames, seed, frames_per_scene=8, shard_size=256, log=None):
     """Generates ``frames`` samples of ``split`` ('train', 'val' or 'test') into ``out_dir``/*.npz.
 
-    Scenes: scenario drawn by SCENARIO_WEIGHTS, 0-4 humanoids (static_room: 0), a 90 s sequence
-    per scene of which ``frames_per_scene`` random frames are used (varied poses and gaits).
+    Scenes: scenario drawn by SCENARIO_WEIGHTS, 0-4 humanoids (static_room: 0), a room size drawn
+    uniformly from ROOM_RANGE and 0-MAX_EXTRA_FURNITURE free-standing chairs, tables and floor
+    lamps (hard negatives), a 90 s sequence per scene of which ``frames_per_scene`` random frames
+    are used (varied poses and gaits).
     Train scenes holding a walker taller than TALL metres are skipped (test keeps every size, so
     test bodies include sizes never trained on). Deterministic for (split, seed).
     Returns a summary dict.
@@ -346,7 +352,8 @@ def generate(out_dir, split, frames, seed, frames_per_scene=8, shard_size=256, l
         raise ValueError(f"ds3d.htx.data.generate: split must be one of {SPLITS} (got {split!r})")
     rng = np.random.default_rng([seed, SPLITS.index(split)])
     info = {"split": split, "seed": seed, "preprocess": PREPROCESS, "max_points": MAX_POINTS,
-            "camera": camera, "frame": "upright (docs/htx_training.md)", "format": 1}
+            "camera": camera, "frame": "upright (docs/htx_training.md)", "format": 1,
+            "room_range": [list(r) for r in ROOM_RANGE], "max_extra_furniture": MAX_EXTRA_FURNITURE}
     pending, shard_no, done, skipped, scene_i = [], 0, 0, 0, 0
     stats = {"boxes": 0, "frames_with_people": 0, "up_source": [0, 0, 0]}
     seeds = iter(scene_seeds(split, 10**6, seed * 10_000_000))
@@ -355,7 +362,10 @@ def generate(out_dir, split, frames, seed, frames_per_scene=8, shard_size=256, l
         srng = np.random.default_rng(s)
         scen = SCENARIOS[int(srng.choice(len(SCENARIOS), p=SCENARIO_WEIGHTS))]
         humans = 0 if scen == "static_room" else int(srng.integers(1, 5))
-        scene = ds3d.synth.Scene(scen, frames=2700, seed=s, humans=humans)
+        room = tuple(round(float(srng.uniform(lo, hi)), 3) for lo, hi in ROOM_RANGE)
+        furniture = int(srng.integers(0, MAX_EXTRA_FURNITURE + 1))
+        scene = ds3d.synth.Scene(scen, frames=2700, seed=s, humans=humans, room_size=room,
+                                 furniture=furniture)
         picks = np.sort(srng.choice(2700, frames_per_scene, replace=False))
         first = scene.render(int(picks[0]))
         if split != "test" and any((not b["sitting"]) and b["size"][2] > TALL for b in first["boxes"]):
@@ -370,7 +380,8 @@ def generate(out_dir, split, frames, seed, frames_per_scene=8, shard_size=256, l
             if sample is None:
                 continue
             prev_up = sample["R_up_cam"].T.astype(np.float64) @ np.array([0, 0, 1.0])
-            sample["info"] = {"seed": s, "scenario": scen, "frame": int(fi), "humans": humans}
+            sample["info"] = {"seed": s, "scenario": scen, "frame": int(fi), "humans": humans,
+                              "room": list(room), "furniture": furniture}
             pending.append(sample)
             done += 1
             stats["boxes"] += len(sample["boxes"])

@@ -7,8 +7,10 @@
 #include <pybind11/stl.h>
 
 #include <string>
+#include <vector>
 
 #include "ds3d/dataset.hpp"
+#include "ds3d/errors.hpp"
 #include "ds3d/synth.hpp"
 #include "slam_py_util.hpp"
 
@@ -48,8 +50,15 @@ py::dict frame_dict(const ds3d::synth::SynthFrame& f) {
 }
 
 ds3d::synth::SynthOptions make_options(const std::string& scenario, int frames, std::uint64_t seed,
-                                       int humans, double fps, bool depth_noise, bool parts) {
+                                       int humans, double fps, bool depth_noise, bool parts,
+                                       const std::vector<double>& room, int furniture) {
   ds3d::synth::SynthOptions o;
+  if (room.size() != 3) {
+    throw ds3d::InvalidArgument("ds3d.synth: room_size must have 3 values (x, y, z) [m] (got " +
+                                std::to_string(room.size()) + ")");
+  }
+  o.room_size = Eigen::Vector3d(room[0], room[1], room[2]);
+  o.extra_furniture = furniture;
   o.scenario = ds3d::synth::parse_scenario(scenario);
   o.num_frames = frames;
   o.seed = seed;
@@ -75,12 +84,13 @@ void bind_synth(py::module_& m) {
 
   py::class_<ds3d::synth::SyntheticScene>(m, "_SyntheticScene")
       .def(py::init([](const std::string& scenario, int frames, std::uint64_t seed, int humans,
-                       double fps, bool depth_noise) {
-             return ds3d::synth::SyntheticScene(
-                 make_options(scenario, frames, seed, humans, fps, depth_noise, false));
+                       double fps, bool depth_noise, const std::vector<double>& room,
+                       int furniture) {
+             return ds3d::synth::SyntheticScene(make_options(scenario, frames, seed, humans, fps,
+                                                             depth_noise, false, room, furniture));
            }),
            py::arg("scenario"), py::arg("frames"), py::arg("seed"), py::arg("humans"),
-           py::arg("fps"), py::arg("depth_noise"))
+           py::arg("fps"), py::arg("depth_noise"), py::arg("room_size"), py::arg("furniture"))
       .def("__len__", &ds3d::synth::SyntheticScene::size)
       .def("render", [](const ds3d::synth::SyntheticScene& s, std::size_t i) {
         ds3d::synth::SynthFrame f;
@@ -93,8 +103,10 @@ void bind_synth(py::module_& m) {
   m.def(
       "_synth_generate",
       [](const std::string& out_dir, const std::string& scenario, int frames, std::uint64_t seed,
-         int humans, double fps, bool depth_noise, bool parts) {
-        const auto o = make_options(scenario, frames, seed, humans, fps, depth_noise, parts);
+         int humans, double fps, bool depth_noise, bool parts, const std::vector<double>& room,
+         int furniture) {
+        const auto o =
+            make_options(scenario, frames, seed, humans, fps, depth_noise, parts, room, furniture);
         ds3d::synth::SynthSummary s;
         {
           py::gil_scoped_release release;
@@ -108,5 +120,6 @@ void bind_synth(py::module_& m) {
         return d;
       },
       py::arg("out_dir"), py::arg("scenario"), py::arg("frames"), py::arg("seed"),
-      py::arg("humans"), py::arg("fps"), py::arg("depth_noise"), py::arg("parts"));
+      py::arg("humans"), py::arg("fps"), py::arg("depth_noise"), py::arg("parts"),
+      py::arg("room_size"), py::arg("furniture"));
 }
