@@ -417,7 +417,7 @@ struct KeyDecoder {
 template <PointCloud C>
 void sparse_rows(const C& cloud, std::size_t c, const KeyGrid& g, const std::array<int, 3>& b,
                  const std::uint64_t* sorted, const std::size_t* bound, std::size_t row0,
-                 VoxelGridResult& r) {
+                 bool append, VoxelGridResult& r) {
   const float* const xyz = contiguous_xyz(cloud);
   auto point = [&](std::uint32_t i) {
     if (xyz != nullptr) {
@@ -429,8 +429,8 @@ void sparse_rows(const C& cloud, std::size_t c, const KeyGrid& g, const std::arr
   const KeyDecoder dec(g, b);
   std::int64_t* const out_key = r.keys.data();
   float* const out_c = r.centroids.data();
-  std::uint32_t* const out_n = r.counts.data();
-  std::uint32_t* const out_rep = r.representative.data();
+  alignas(64) std::uint32_t out_n[kKeyBlock];    // counts of the block's rows
+  alignas(64) std::uint32_t out_rep[kKeyBlock];  // representatives of the block's rows
   alignas(64) std::uint64_t ends[kKeyBlock + 1];
   alignas(64) std::uint64_t w[kKeyBlock];
   alignas(64) std::uint32_t multi[kKeyBlock];
@@ -452,8 +452,8 @@ void sparse_rows(const C& cloud, std::size_t c, const KeyGrid& g, const std::arr
       const std::uint64_t pair = sorted[start];
       const auto cnt = static_cast<std::uint32_t>(ends[j] - start);
       w[j] = pair;
-      out_n[row + j] = cnt;
-      out_rep[row + j] = static_cast<std::uint32_t>(pair);
+      out_n[j] = cnt;
+      out_rep[j] = static_cast<std::uint32_t>(pair);
       multi[num_multi] = static_cast<std::uint32_t>(j);
       num_multi += cnt > 1 ? 1 : 0;
       start = ends[j];
@@ -470,7 +470,7 @@ void sparse_rows(const C& cloud, std::size_t c, const KeyGrid& g, const std::arr
     for (std::size_t q = 0; q < num_multi; ++q) {
       const std::size_t j = multi[q];
       const std::size_t hi = ends[j];
-      const std::size_t lo = hi - out_n[row + j];
+      const std::size_t lo = hi - out_n[j];
       double sum_x = 0;
       double sum_y = 0;
       double sum_z = 0;
@@ -495,7 +495,16 @@ void sparse_rows(const C& cloud, std::size_t c, const KeyGrid& g, const std::arr
       out_c[3 * (row + j)] = static_cast<float>(mx);
       out_c[3 * (row + j) + 1] = static_cast<float>(my);
       out_c[3 * (row + j) + 2] = static_cast<float>(mz);
-      out_rep[row + j] = best;
+      out_rep[j] = best;
+    }
+    // Counts and representatives leave L1 once: appended to reserved vectors (one chunk: no
+    // zero-fill of the outputs) or copied to the chunk's rows.
+    if (append) {
+      r.counts.insert(r.counts.end(), out_n, out_n + runs);
+      r.representative.insert(r.representative.end(), out_rep, out_rep + runs);
+    } else {
+      std::copy(out_n, out_n + runs, r.counts.data() + row);
+      std::copy(out_rep, out_rep + runs, r.representative.data() + row);
     }
     row += runs;
   }
@@ -692,12 +701,18 @@ void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int thread
   const std::size_t rows = offset[chunks];
   r.centroids.resize(static_cast<Eigen::Index>(rows), 3);
   r.keys.resize(static_cast<Eigen::Index>(rows), 3);
-  r.counts.resize(rows);
-  r.representative.resize(rows);
+  const bool append = min_pts == 1 && chunks == 1;  // sparse_rows appends to reserved vectors
+  if (append) {
+    r.counts.reserve(rows);
+    r.representative.reserve(rows);
+  } else {
+    r.counts.resize(rows);
+    r.representative.resize(rows);
+  }
   parallel_chunks(chunks, chunks, threads, [&](std::size_t cb, std::size_t ce, std::size_t) {
     for (std::size_t c = cb; c < ce; ++c) {
       if (min_pts == 1) {
-        sparse_rows(cloud, c, g, b, sorted, bound, offset[c], r);
+        sparse_rows(cloud, c, g, b, sorted, bound, offset[c], append, r);
       } else {
         fill_chunk(c);
       }
