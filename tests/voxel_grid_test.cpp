@@ -295,6 +295,38 @@ TEST(VoxelGrid, DenseAndSparseBoxesMatchBruteForce) {
   }
 }
 
+TEST(VoxelGrid, SparseRowBlocksAndFieldWidthsMatchBruteForce) {
+  // The sparse path builds its rows per block of 256 sorted pairs: voxels whose members span
+  // one or more block boundaries (255, 256, 257 and 700 members), a key with no x bits (the
+  // decoder's x shift is then the full 64 bits) and a 32-bit key with non-finite points.
+  ds3d::test::Rng rng(31);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  Points3f runs = ds3d::test::uniform_box(3000, {0, 0, 0}, {1, 1, 1}, rng);
+  for (const int members : {255, 256, 257, 700}) {
+    Points3f more(members, 3);
+    const float c = 0.1F * static_cast<float>(members % 9) + 0.0031F;
+    for (Eigen::Index i = 0; i < more.rows(); ++i) {
+      more.row(i) << c + static_cast<float>(rng.uniform(0, 0.005)),
+          c + static_cast<float>(rng.uniform(0, 0.005)), 0.5031F;
+    }
+    Points3f both(runs.rows() + more.rows(), 3);
+    both << runs, more;
+    runs = both;
+  }
+  Points3f flat_x = ds3d::test::uniform_box(5000, {0.123F, 0, 0}, {0.123F, 20, 20}, rng);
+  Points3f wide = ds3d::test::uniform_box(5000, {0, 0, 0}, {20, 20, 5}, rng);
+  for (const Eigen::Index i : {3, 256, 4999}) wide(i, i % 3) = nan;
+  for (const auto& [name, cloud] : {std::pair<std::string, const Points3f&>{"runs", runs},
+                                    {"no x bits", flat_x},
+                                    {"32-bit keys", wide}}) {
+    const VoxelGridResult ref = brute_force_voxels(cloud, 0.01);
+    for (const int t : {1, 3}) {
+      expect_same(ds3d::voxel_grid(cloud, {.leaf_size = 0.01, .num_threads = t}), ref,
+                  name + " threads " + std::to_string(t));
+    }
+  }
+}
+
 TEST(VoxelGrid, MinPointsDropsSmallVoxels) {
   ds3d::test::Rng rng(2);
   const Points3f p = ds3d::test::uniform_box(3000, {0, 0, 0}, {1, 1, 1}, rng);

@@ -64,7 +64,7 @@ struct VoxelGridResult {
 /// Scratch buffers of voxel_grid(). Pass the same workspace to repeated calls (one per thread)
 /// and the fast path allocates nothing but the outputs. Contents are unspecified between calls.
 struct VoxelGridWorkspace {
-  detail::Scratch<std::uint64_t> words;  ///< sparse box: (key << 32 | index) pairs
+  detail::Scratch<std::uint64_t> words;  ///< sparse box: 32-bit keys, then radix-sort pairs
   detail::Scratch<std::uint64_t> tmp;    ///< radix-sort ping-pong buffer (not zero-filled)
   std::size_t capacity = 0;              ///< words of each of words / tmp
   std::vector<std::uint32_t> hist;       ///< radix histograms

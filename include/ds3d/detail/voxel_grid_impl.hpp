@@ -334,6 +334,182 @@ void voxel_grid_dense(const C& cloud, const VoxelGridParams& params, int threads
   r.representative.resize(rows);
 }
 
+/// Start of the coordinates of a contiguous row-major cloud (3 floats per point), else nullptr.
+template <PointCloud C>
+[[nodiscard]] const float* contiguous_xyz(const C& c) {
+  if constexpr (std::is_same_v<C, Points3f>) {
+    return c.data();
+  } else if constexpr (std::is_same_v<C, Eigen::Ref<const Points3f>>) {
+    return c.outerStride() == 3 ? c.data() : nullptr;
+  } else {
+    return nullptr;
+  }
+}
+
+/// Decodes bit-packed sparse-path keys ((ix - lo_x) << (b_y + b_z) | (iy - lo_y) << b_z |
+/// (iz - lo_z), in the high half of a sort pair) into int64 (ix, iy, iz) rows.
+struct KeyDecoder {
+  unsigned sx;         ///< shift of the x field (b_y + b_z)
+  unsigned sy;         ///< shift of the y field (b_z)
+  std::uint64_t my;    ///< y field mask
+  std::uint64_t mz;    ///< z field mask
+  std::int64_t lo[3];  ///< key box minimum
+
+  KeyDecoder(const KeyGrid& g, const std::array<int, 3>& b)
+      : sx(static_cast<unsigned>(b[1] + b[2])),
+        sy(static_cast<unsigned>(b[2])),
+        my((std::uint64_t{1} << b[1]) - 1),
+        mz((std::uint64_t{1} << b[2]) - 1),
+        lo{g.lo[0], g.lo[1], g.lo[2]} {}
+
+  /// Keys of pairs w[0, len) into out[0, 3 len).
+  void decode(const std::uint64_t* w, std::size_t len, std::int64_t* out) const {
+    std::size_t j = 0;
+#if defined(__AVX2__)
+    // Four rows per step: three field vectors, interleaved by lane permutes and blends.
+    const __m128i cx = _mm_cvtsi32_si128(static_cast<int>(sx + 32));
+    const __m128i cy = _mm_cvtsi32_si128(static_cast<int>(sy + 32));
+    const __m256i vmy = _mm256_set1_epi64x(static_cast<long long>(my));
+    const __m256i vmz = _mm256_set1_epi64x(static_cast<long long>(mz));
+    const __m256i l0 = _mm256_set1_epi64x(lo[0]);
+    const __m256i l1 = _mm256_set1_epi64x(lo[1]);
+    const __m256i l2 = _mm256_set1_epi64x(lo[2]);
+    for (; j + 4 <= len; j += 4) {
+      const __m256i k = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(w + j));
+      const __m256i x = _mm256_add_epi64(_mm256_srl_epi64(k, cx), l0);
+      const __m256i y = _mm256_add_epi64(_mm256_and_si256(_mm256_srl_epi64(k, cy), vmy), l1);
+      const __m256i z = _mm256_add_epi64(_mm256_and_si256(_mm256_srli_epi64(k, 32), vmz), l2);
+      // [x0 y0 z0 x1] [y1 z1 x2 y2] [z2 x3 y3 z3]
+      const __m256i o0 =
+          _mm256_blend_epi32(_mm256_blend_epi32(_mm256_permute4x64_epi64(x, 0x40),
+                                                _mm256_permute4x64_epi64(y, 0x00), 0x0C),
+                             _mm256_permute4x64_epi64(z, 0x00), 0x30);
+      const __m256i o1 =
+          _mm256_blend_epi32(_mm256_blend_epi32(_mm256_permute4x64_epi64(y, 0x81),
+                                                _mm256_permute4x64_epi64(z, 0x04), 0x0C),
+                             _mm256_permute4x64_epi64(x, 0x20), 0x30);
+      const __m256i o2 =
+          _mm256_blend_epi32(_mm256_blend_epi32(_mm256_permute4x64_epi64(z, 0xC2),
+                                                _mm256_permute4x64_epi64(x, 0x0C), 0x0C),
+                             _mm256_permute4x64_epi64(y, 0x30), 0x30);
+      auto* o = reinterpret_cast<__m256i*>(out + 3 * j);
+      _mm256_storeu_si256(o, o0);
+      _mm256_storeu_si256(o + 1, o1);
+      _mm256_storeu_si256(o + 2, o2);
+    }
+#endif
+    for (; j < len; ++j) {
+      const std::uint64_t k = w[j] >> 32U;
+      out[3 * j] = static_cast<std::int64_t>(k >> sx) + lo[0];
+      out[3 * j + 1] = static_cast<std::int64_t>((k >> sy) & my) + lo[1];
+      out[3 * j + 2] = static_cast<std::int64_t>(k & mz) + lo[2];
+    }
+  }
+};
+
+/// Output rows of the sparse path for min_points == 1 from the sorted (key << 32 | index) pairs
+/// sorted[0, bound[chunks]), chunk c from row offset[c] on. Pairs are taken in blocks: (a) the
+/// end of every run of equal keys in the block, one branch-free step per pair, into an L1
+/// buffer; (b) counts, first members and keys of those rows; (c) centroids of every row as if it
+/// had one member (a straight copy of the point: the bits of a one-member sum), listing the rows
+/// with more members; (d) those rows summed in input order and their representative chosen.
+/// Same output as the per-run loop, with no branch on the (unpredictable) run length.
+template <PointCloud C>
+void sparse_rows(const C& cloud, std::size_t c, const KeyGrid& g, const std::array<int, 3>& b,
+                 const std::uint64_t* sorted, const std::size_t* bound, std::size_t row0,
+                 bool append, VoxelGridResult& r) {
+  const float* const xyz = contiguous_xyz(cloud);
+  auto point = [&](std::uint32_t i) {
+    if (xyz != nullptr) {
+      const float* q = xyz + 3 * std::size_t{i};
+      return Eigen::Vector3f(q[0], q[1], q[2]);
+    }
+    return Eigen::Vector3f(cloud::point(cloud, i));
+  };
+  const KeyDecoder dec(g, b);
+  std::int64_t* const out_key = r.keys.data();
+  float* const out_c = r.centroids.data();
+  alignas(64) std::uint32_t out_n[kKeyBlock];    // counts of the block's rows
+  alignas(64) std::uint32_t out_rep[kKeyBlock];  // representatives of the block's rows
+  alignas(64) std::uint64_t ends[kKeyBlock + 1];
+  alignas(64) std::uint64_t w[kKeyBlock];
+  alignas(64) std::uint32_t multi[kKeyBlock];
+  const std::size_t end = bound[c + 1];
+  std::size_t row = row0;
+  std::size_t start = bound[c];  // first pair of the current (unfinished) run
+  for (std::size_t k0 = bound[c]; k0 < end; k0 += kKeyBlock) {
+    const std::size_t k1 = std::min(end, k0 + kKeyBlock);
+    // (a) a run ends after pair k when the next key differs (or at the chunk's end).
+    std::size_t runs = 0;
+    for (std::size_t k = k0; k < k1; ++k) {
+      ends[runs] = k + 1;
+      const bool last = k + 1 == end || (sorted[k + 1] >> 32U) != (sorted[k] >> 32U);
+      runs += last ? 1 : 0;
+    }
+    // (b) rows of the runs that ended in this block.
+    std::size_t num_multi = 0;
+    for (std::size_t j = 0; j < runs; ++j) {
+      const std::uint64_t pair = sorted[start];
+      const auto cnt = static_cast<std::uint32_t>(ends[j] - start);
+      w[j] = pair;
+      out_n[j] = cnt;
+      out_rep[j] = static_cast<std::uint32_t>(pair);
+      multi[num_multi] = static_cast<std::uint32_t>(j);
+      num_multi += cnt > 1 ? 1 : 0;
+      start = ends[j];
+    }
+    dec.decode(w, runs, out_key + 3 * row);
+    // (c) one member: the point itself.
+    for (std::size_t j = 0; j < runs; ++j) {
+      const Eigen::Vector3f p = point(static_cast<std::uint32_t>(w[j]));
+      out_c[3 * (row + j)] = p.x();
+      out_c[3 * (row + j) + 1] = p.y();
+      out_c[3 * (row + j) + 2] = p.z();
+    }
+    // (d) more members: mean in input order, then the first member nearest it.
+    for (std::size_t q = 0; q < num_multi; ++q) {
+      const std::size_t j = multi[q];
+      const std::size_t hi = ends[j];
+      const std::size_t lo = hi - out_n[j];
+      double sum_x = 0;
+      double sum_y = 0;
+      double sum_z = 0;
+      for (std::size_t k = lo; k < hi; ++k) {
+        const Eigen::Vector3f p = point(static_cast<std::uint32_t>(sorted[k]));
+        sum_x += p.x();
+        sum_y += p.y();
+        sum_z += p.z();
+      }
+      const double inv_cnt = 1.0 / static_cast<double>(hi - lo);
+      const double mx = sum_x * inv_cnt;
+      const double my = sum_y * inv_cnt;
+      const double mz = sum_z * inv_cnt;
+      auto best = static_cast<std::uint32_t>(sorted[lo]);
+      double best_d = std::numeric_limits<double>::infinity();
+      for (std::size_t k = lo; k < hi; ++k) {
+        const auto i = static_cast<std::uint32_t>(sorted[k]);
+        const double d = member_sq_dist(point(i), mx, my, mz);
+        best = d < best_d ? i : best;  // strict: the first (lowest input index) wins ties
+        best_d = d < best_d ? d : best_d;
+      }
+      out_c[3 * (row + j)] = static_cast<float>(mx);
+      out_c[3 * (row + j) + 1] = static_cast<float>(my);
+      out_c[3 * (row + j) + 2] = static_cast<float>(mz);
+      out_rep[j] = best;
+    }
+    // Counts and representatives leave L1 once: appended to reserved vectors (one chunk: no
+    // zero-fill of the outputs) or copied to the chunk's rows.
+    if (append) {
+      r.counts.insert(r.counts.end(), out_n, out_n + runs);
+      r.representative.insert(r.representative.end(), out_rep, out_rep + runs);
+    } else {
+      std::copy(out_n, out_n + runs, r.counts.data() + row);
+      std::copy(out_rep, out_rep + runs, r.representative.data() + row);
+    }
+    row += runs;
+  }
+}
+
 /// Sparse-box path of voxel_grid: (key << 32 | index) pairs, bit-packed keys of `bits` <= 32
 /// bits (kNoKey, all ones, sorts last), stable LSD radix sort, then one row per run of equal keys.
 template <PointCloud C>
@@ -352,18 +528,21 @@ void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int thread
   const int digit = passes == 0 ? 0 : (bits + passes - 1) / passes;
   const std::size_t buckets = std::size_t{1} << digit;
   const std::uint64_t dmask = buckets - 1;
-  // Pass 2: pairs and all radix histograms (always three: a pass beyond `passes` sees only
-  // zero bits, so the counting loop has no inner loop), one set per chunk.
+  // Pass 2: 32-bit keys (stored in the first half of `a`, read back as bytes: the buffer is
+  // typed uint64) and all radix histograms (always three: a pass beyond `passes` sees only zero
+  // bits, so the counting loop has no inner loop), one set per chunk.
   const auto chunks = static_cast<std::size_t>(std::max(1, threads));
   ws.hist.assign(buckets * 3 * chunks, 0U);
   std::uint64_t* a = ws.words.get();
-  auto pairs = [&](std::size_t b0, std::size_t e0, std::size_t ch) {
+  std::uint64_t* const t = ws.tmp.get();
+  auto* const key_bytes = reinterpret_cast<unsigned char*>(a);
+  auto pass_keys = [&](std::size_t b0, std::size_t e0, std::size_t ch) {
     std::uint32_t* h = ws.hist.data() + 3 * buckets * ch;
     for_each_key_block(cloud, b0, e0, g, kFn,
                        [&](std::size_t s, std::size_t len, const std::uint32_t* keys) {
+                         std::memcpy(key_bytes + 4 * s, keys, 4 * len);
                          for (std::size_t j = 0; j < len; ++j) {
-                           const std::uint64_t key = keys[j];
-                           a[s + j] = (key << 32U) | (s + j);
+                           const std::uint32_t key = keys[j];
                            ++h[key & dmask];
                            ++h[buckets + ((key >> digit) & dmask)];
                            ++h[2 * buckets + ((key >> (2 * digit)) & dmask)];
@@ -371,9 +550,9 @@ void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int thread
                        });
   };
   if (chunks == 1) {
-    pairs(0, n, 0);
+    pass_keys(0, n, 0);
   } else {
-    parallel_chunks(n, chunks, threads, pairs);
+    parallel_chunks(n, chunks, threads, pass_keys);
     for (std::size_t ch = 1; ch < chunks; ++ch) {
       for (std::size_t k = 0; k < 3 * buckets; ++k) {
         ws.hist[k] += ws.hist[3 * buckets * ch + k];
@@ -381,8 +560,26 @@ void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int thread
     }
   }
   // Pass 3: stable radix sort over the used bits only (0 to 3 passes); kNoKey pairs end last.
-  const std::uint64_t* sorted =
-      radix_sort_pairs(a, ws.tmp.get(), n, ws.hist.data(), passes, digit, 32);
+  // Its first pass reads the keys and writes (key << 32 | index) pairs into t.
+  const std::uint64_t* sorted = t;
+  {
+    std::uint32_t* c = ws.hist.data();
+    std::uint32_t sum = 0;
+    for (std::size_t k = 0; k < buckets; ++k) {
+      const std::uint32_t cnt = c[k];
+      c[k] = sum;
+      sum += cnt;
+    }
+    const std::uint64_t mask = passes == 0 ? 0 : dmask;  // no pass: one bucket, input order
+    for (std::size_t k = 0; k < n; ++k) {
+      std::uint32_t key;
+      std::memcpy(&key, key_bytes + 4 * k, 4);
+      t[c[key & mask]++] = (std::uint64_t{key} << 32U) | k;
+    }
+    if (passes > 1) {
+      sorted = radix_sort_pairs(t, a, n, ws.hist.data() + buckets, passes - 1, digit, 32 + digit);
+    }
+  }
 
   // Pass 4: voxels are runs of equal keys among the m finite points. Chunks start at voxel
   // boundaries; each fills its rows from its first row on (sums in input order: identical for
@@ -504,10 +701,22 @@ void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int thread
   const std::size_t rows = offset[chunks];
   r.centroids.resize(static_cast<Eigen::Index>(rows), 3);
   r.keys.resize(static_cast<Eigen::Index>(rows), 3);
-  r.counts.resize(rows);
-  r.representative.resize(rows);
+  const bool append = min_pts == 1 && chunks == 1;  // sparse_rows appends to reserved vectors
+  if (append) {
+    r.counts.reserve(rows);
+    r.representative.reserve(rows);
+  } else {
+    r.counts.resize(rows);
+    r.representative.resize(rows);
+  }
   parallel_chunks(chunks, chunks, threads, [&](std::size_t cb, std::size_t ce, std::size_t) {
-    for (std::size_t c = cb; c < ce; ++c) fill_chunk(c);
+    for (std::size_t c = cb; c < ce; ++c) {
+      if (min_pts == 1) {
+        sparse_rows(cloud, c, g, b, sorted, bound, offset[c], append, r);
+      } else {
+        fill_chunk(c);
+      }
+    }
   });
 }
 
