@@ -28,6 +28,12 @@
 
 namespace ds3d::detail {
 
+// Which Prim step prim_dense runs. kAuto picks the widest one the CPU runs (AVX-512F, AVX2,
+// SSE2 for D = 3; generic otherwise); the others exist so tests can check that every step gives
+// bitwise the same tree. A forced step that the build or the CPU cannot run (see
+// prim_step_available) falls back to kAuto's choice.
+enum class PrimStep : std::uint8_t { kAuto, kGeneric, kSse2, kAvx2, kAvx512 };
+
 // Prim on the implicit dense graph. The not-yet-connected points are kept in SoA arrays in
 // index order; a connected point is retired by setting its key and core to +inf (never updated
 // again, never picked) and the arrays are compacted, order-preserving, once an eighth are retired.
@@ -309,8 +315,36 @@ inline bool cpu_has_avx2() {
 }
 #endif
 
+inline bool prim_step_available(PrimStep step, std::size_t dim) {
+  switch (step) {
+    case PrimStep::kGeneric:
+      return true;
+    case PrimStep::kSse2:
+#if defined(__SSE2__)
+      return dim == 3;
+#else
+      return false;
+#endif
+    case PrimStep::kAvx2:
+#if defined(DS3D_HDBSCAN_AVX2)
+      return dim == 3 && cpu_has_avx2();
+#else
+      return false;
+#endif
+    case PrimStep::kAvx512:
+#if defined(DS3D_HDBSCAN_AVX512)
+      return dim == 3 && cpu_has_avx512();
+#else
+      return false;
+#endif
+    default:
+      return false;
+  }
+}
+
 inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::size_t dim,
-                                       const std::vector<double>& core) {
+                                       const std::vector<double>& core,
+                                       PrimStep step = PrimStep::kAuto) {
   std::vector<MstEdge> edges;
   if (n < 2) return edges;
   edges.reserve(n - 1);
@@ -328,49 +362,90 @@ inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::s
     s.core2[t] = core[t + 1] * core[t + 1];
     for (std::size_t j = 0; j < dim; ++j) s.coords[j][t] = data[(t + 1) * dim + j];
   }
-  std::size_t alive = s.m;
+  if (dim != 3) step = PrimStep::kGeneric;
+  if (step == PrimStep::kAuto || !prim_step_available(step, dim)) {
+    step = prim_step_available(PrimStep::kAvx512, dim) ? PrimStep::kAvx512
+           : prim_step_available(PrimStep::kAvx2, dim) ? PrimStep::kAvx2
+           : prim_step_available(PrimStep::kSse2, dim) ? PrimStep::kSse2
+                                                       : PrimStep::kGeneric;
+  }
+  // Settled points: a key equal to the point's own squared core distance can never drop again
+  // (every candidate max{κ_a², κ_b², d²} is >= κ_b²), so such a point leaves the streaming
+  // arrays at the next compaction and waits in a min-heap ordered by (key, point id), the same
+  // order as the step's first-minimum rule over slots in index order.
+  struct Settled {
+    double key2;
+    std::uint32_t idx;
+    std::uint32_t from;
+  };
+  const auto heap_after = [](const Settled& a, const Settled& b) {
+    return a.key2 > b.key2 || (a.key2 == b.key2 && a.idx > b.idx);
+  };
+  std::vector<Settled> settled;
+  std::size_t alive = s.m;  // slots not yet retired (settled ones count until they move)
+  std::size_t remaining = n - 1;
   std::uint32_t cur = 0;
-  while (alive > 0) {
+  while (remaining > 0) {
     const double* c = data + static_cast<std::size_t>(cur) * dim;
     const double cc2 = core[cur] * core[cur];
     std::size_t best = s.m;
+    if (alive > 0) {
+      switch (step) {
 #if defined(DS3D_HDBSCAN_AVX2)
-    if (dim == 3 && cpu_has_avx512()) {
-      best = prim_step_3d_avx512(s, c, cc2, static_cast<double>(cur));
-    } else if (dim == 3 && cpu_has_avx2()) {
-      best = prim_step_3d_avx2(s, c, cc2, static_cast<double>(cur));
-    } else if (dim == 3) {
-      best = prim_step_3d_sse2(s, c, cc2, static_cast<double>(cur));
-    } else {
-      best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
-    }
-#elif defined(__SSE2__)
-    if (dim == 3) {
-      best = prim_step_3d_sse2(s, c, cc2, static_cast<double>(cur));
-    } else {
-      best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
-    }
-#else
-    best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
+        case PrimStep::kAvx512:
+          best = prim_step_3d_avx512(s, c, cc2, static_cast<double>(cur));
+          break;
+        case PrimStep::kAvx2:
+          best = prim_step_3d_avx2(s, c, cc2, static_cast<double>(cur));
+          break;
 #endif
-    if (best == s.m) {  // unreachable for finite input; keep the tree connected regardless
-      for (std::size_t t = 0; t < s.m; ++t) {
-        if (s.core2[t] != inf) best = t;
+#if defined(__SSE2__)
+        case PrimStep::kSse2:
+          best = prim_step_3d_sse2(s, c, cc2, static_cast<double>(cur));
+          break;
+#endif
+        default:
+          best = prim_step_generic(s, c, cc2, static_cast<double>(cur));
+          break;
+      }
+      if (best == s.m && settled.empty()) {  // unreachable for finite input; stay connected
+        for (std::size_t t = 0; t < s.m; ++t) {
+          if (s.core2[t] != inf) best = t;
+        }
       }
     }
-    const auto to = s.idx[best];
-    const auto src = static_cast<std::uint32_t>(s.from[best]);
+    const bool take_settled =
+        !settled.empty() &&
+        (best == s.m || settled.front().key2 < s.key2[best] ||
+         (settled.front().key2 == s.key2[best] && settled.front().idx < s.idx[best]));
+    std::uint32_t to = 0;
+    std::uint32_t src = 0;
+    if (take_settled) {
+      to = settled.front().idx;
+      src = settled.front().from;
+      std::pop_heap(settled.begin(), settled.end(), heap_after);
+      settled.pop_back();
+    } else {
+      to = s.idx[best];
+      src = static_cast<std::uint32_t>(s.from[best]);
+      s.key2[best] = inf;
+      s.core2[best] = inf;
+      --alive;
+    }
     const double d = std::sqrt(sq_dist_seq(data + static_cast<std::size_t>(src) * dim,
                                            data + static_cast<std::size_t>(to) * dim, dim));
     edges.push_back({src, to, std::max({core[src], core[to], d})});
     cur = to;
-    s.key2[best] = inf;
-    s.core2[best] = inf;
-    --alive;
+    --remaining;
     if (alive > 0 && 8 * alive < 7 * s.m) {  // order-preserving compaction, 1/8 retired
       std::size_t w = 0;
       for (std::size_t t = 0; t < s.m; ++t) {
         if (s.core2[t] == inf) continue;
+        if (s.key2[t] == s.core2[t]) {  // settled: key final
+          settled.push_back({s.key2[t], s.idx[t], static_cast<std::uint32_t>(s.from[t])});
+          std::push_heap(settled.begin(), settled.end(), heap_after);
+          continue;
+        }
         s.idx[w] = s.idx[t];
         s.core2[w] = s.core2[t];
         s.key2[w] = s.key2[t];
@@ -379,6 +454,7 @@ inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::s
         ++w;
       }
       s.m = w;
+      alive = w;
     }
   }
   return edges;
