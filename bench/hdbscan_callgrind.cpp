@@ -41,7 +41,21 @@ int main(int argc, char** argv) {
     std::memcpy(&b, &e.weight, sizeof b);
     h = h * 31U + b;
   }
-  std::printf("clusters %d hash %llx\n", r.num_clusters, static_cast<unsigned long long>(h));
+  // Full hash: also MST endpoints, core distances, probabilities and outlier scores (bit
+  // patterns, so NaN and -0.0 count), for checks that a change is bitwise neutral everywhere.
+  std::uint64_t f = h;
+  auto mix = [&f](double v) {
+    std::uint64_t b = 0;
+    std::memcpy(&b, &v, sizeof b);
+    f = f * 1099511628211ULL + b;
+  };
+  for (const auto& e : r.min_spanning_tree) f = f * 1099511628211ULL + (std::uint64_t{e.from} << 32U | e.to);
+  for (const double v : r.core_distances) mix(v);
+  for (const double v : r.probabilities) mix(v);
+  for (const double v : r.outlier_scores) mix(v);
+  for (const double v : r.cluster_persistence) mix(v);
+  std::printf("clusters %d hash %llx full %llx\n", r.num_clusters, static_cast<unsigned long long>(h),
+              static_cast<unsigned long long>(f));
   const int reps = argc > 4 ? std::atoi(argv[4]) : 0;
   if (reps > 0) {
     auto cpu_ms = [] {

@@ -527,6 +527,81 @@ TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
   }
 }
 
+TEST(Hdbscan, PrimStepsMatchTextbookPrimBitwise) {
+  // prim_dense streams keys through SIMD steps (AVX-512F, AVX2, SSE2 for D = 3, else generic),
+  // compacts retired slots and parks points whose key reached their own core distance in a heap.
+  // Every step the build and CPU can run must give the tree of a textbook O(n²) Prim with the same
+  // rules (squared keys max{κa², κb², d²}, first index with the smallest key, keys replaced only
+  // by strictly smaller ones): same edges in the same order, bitwise equal weights.
+  auto textbook = [](const RowMatrixXd& x, const std::vector<double>& core) {
+    const auto n = static_cast<std::size_t>(x.rows());
+    const auto dim = static_cast<std::size_t>(x.cols());
+    const double inf = std::numeric_limits<double>::infinity();
+    std::vector<double> key(n, inf);
+    std::vector<std::uint32_t> from(n, 0);
+    std::vector<char> in(n, 0);
+    std::vector<ds3d::MstEdge> edges;
+    std::size_t cur = 0;
+    in[0] = 1;
+    for (std::size_t step = 1; step < n; ++step) {
+      std::size_t best = n;
+      for (std::size_t t = 0; t < n; ++t) {
+        if (in[t]) continue;
+        const double d2 = ds3d::detail::sq_dist_seq(x.data() + cur * dim, x.data() + t * dim, dim);
+        const double m2 = std::max({core[cur] * core[cur], core[t] * core[t], d2});
+        if (m2 < key[t]) {
+          key[t] = m2;
+          from[t] = static_cast<std::uint32_t>(cur);
+        }
+        if (best == n || key[t] < key[best]) best = t;
+      }
+      const auto f = static_cast<std::size_t>(from[best]);
+      const double d =
+          std::sqrt(ds3d::detail::sq_dist_seq(x.data() + f * dim, x.data() + best * dim, dim));
+      edges.push_back(
+          {from[best], static_cast<std::uint32_t>(best), std::max({core[f], core[best], d})});
+      in[best] = 1;
+      cur = best;
+    }
+    return edges;
+  };
+  std::vector<RowMatrixXd> sets;
+  sets.push_back(ds3d::test::gaussian_blobs(1200, 3, 6, 0.2, 3, 10.0, 1.0).x);
+  sets.push_back(ds3d::test::gaussian_blobs(500, 2, 4, 0.2, 4, 10.0, 1.0).x);
+  RowMatrixXd grid(800, 3);  // clumped integer grid: many exact key ties
+  std::uint64_t state = 9;
+  for (Eigen::Index i = 0; i < grid.rows(); ++i) {
+    for (Eigen::Index j = 0; j < 3; ++j) {
+      state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+      grid(i, j) = static_cast<double>((state >> 33) % 20) + 50.0 * static_cast<double>(i % 3);
+    }
+  }
+  sets.push_back(grid);
+  using ds3d::detail::PrimStep;
+  for (const auto& x : sets) {
+    const auto n = static_cast<std::size_t>(x.rows());
+    const auto dim = static_cast<std::size_t>(x.cols());
+    for (const std::size_t k : {std::size_t{1}, std::size_t{10}}) {
+      const ds3d::detail::DenseRowsNd ds{x.data(), n, dim};
+      const auto core = ds3d::detail::knn_core_distances(ds, k, 1);
+      const auto want = textbook(x, core);
+      for (const auto step : {PrimStep::kAuto, PrimStep::kGeneric, PrimStep::kSse2, PrimStep::kAvx2,
+                              PrimStep::kAvx512}) {
+        if (step != PrimStep::kAuto && !ds3d::detail::prim_step_available(step, dim)) continue;
+        const auto got = ds3d::detail::prim_dense(x.data(), n, dim, core, step);
+        ASSERT_EQ(got.size(), want.size());
+        for (std::size_t e = 0; e < got.size(); ++e) {
+          ASSERT_EQ(got[e].from, want[e].from)
+              << "step " << static_cast<int>(step) << " edge " << e;
+          ASSERT_EQ(got[e].to, want[e].to) << "step " << static_cast<int>(step) << " edge " << e;
+          ASSERT_EQ(got[e].weight, want[e].weight)
+              << "step " << static_cast<int>(step) << " edge " << e;
+        }
+      }
+    }
+  }
+}
+
 TEST(Hdbscan, MaxClusterSizeSplitsLargeClusters) {
   const RowMatrixXd x = small_blobs(600, 2, 13);
   HdbscanParams p;

@@ -275,11 +275,30 @@ class KnnTreeSmall {
       lo[j] = data[static_cast<std::size_t>(order_[b]) * d + j];
       hi[j] = lo[j];
     }
-    for (auto i = b + 1; i < e; ++i) {
-      const double* p = data + static_cast<std::size_t>(order_[i]) * d;
-      for (std::size_t j = 0; j < d; ++j) {
-        lo[j] = std::min(lo[j], p[j]);
-        hi[j] = std::max(hi[j], p[j]);
+    if constexpr (kDim == 3) {  // the loop below with the box in registers (same min/max order)
+      double l0 = lo[0], l1 = lo[1], l2 = lo[2], h0 = hi[0], h1 = hi[1], h2 = hi[2];
+      for (auto i = b + 1; i < e; ++i) {
+        const double* p = data + static_cast<std::size_t>(order_[i]) * 3;
+        l0 = std::min(l0, p[0]);
+        h0 = std::max(h0, p[0]);
+        l1 = std::min(l1, p[1]);
+        h1 = std::max(h1, p[1]);
+        l2 = std::min(l2, p[2]);
+        h2 = std::max(h2, p[2]);
+      }
+      lo[0] = l0;
+      lo[1] = l1;
+      lo[2] = l2;
+      hi[0] = h0;
+      hi[1] = h1;
+      hi[2] = h2;
+    } else {
+      for (auto i = b + 1; i < e; ++i) {
+        const double* p = data + static_cast<std::size_t>(order_[i]) * d;
+        for (std::size_t j = 0; j < d; ++j) {
+          lo[j] = std::min(lo[j], p[j]);
+          hi[j] = std::max(hi[j], p[j]);
+        }
       }
     }
     if (e - b <= kLeafSize) return id;
