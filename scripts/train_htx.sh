@@ -5,8 +5,8 @@
 #   data (synthetic humanoids) -> training (resumable) -> threshold on val -> evaluation -> export.
 # Usage: scripts/train_htx.sh [WORK_DIR]   (default /work/htx_data; keep it outside git)
 # Environment: BUILD (default build), THREADS (torch threads per run, default 1), NICE (default 10),
-#   TRAIN_FRAMES per seed (default 1500, two seeds), STEPS (default 4000), BATCH (default 4),
-#   MAX_MINUTES (training time budget, default 100; the run checkpoints and can be resumed),
+#   TRAIN_FRAMES per seed (default 1500, two seeds), STEPS (default 2500), BATCH (default 4),
+#   MAX_MINUTES (training time budget, default 120; the run checkpoints and can be resumed),
 #   ABLATION_STEP (default STEPS/2; 0 = none): the part-head ablation arm, run in parallel with
 #   the main run: the same schedule, seed and data order with part loss weight 0, stopped at
 #   ABLATION_STEP and compared with the main run's snapshot at that step.
@@ -16,9 +16,9 @@ BUILD=${BUILD:-build}
 THREADS=${THREADS:-1}
 NICE=${NICE:-10}
 TRAIN_FRAMES=${TRAIN_FRAMES:-1500}
-STEPS=${STEPS:-4000}
+STEPS=${STEPS:-2500}
 BATCH=${BATCH:-4}
-MAX_MINUTES=${MAX_MINUTES:-100}
+MAX_MINUTES=${MAX_MINUTES:-120}
 ABLATION_STEP=${ABLATION_STEP:-$((STEPS / 2))}
 PY="nice -n ${NICE} /usr/bin/python3"
 export PYTHONPATH="${BUILD}/python${PYTHONPATH:+:${PYTHONPATH}}"
