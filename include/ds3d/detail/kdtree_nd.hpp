@@ -22,6 +22,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "ds3d/detail/box_bounds.hpp"
 #include "ds3d/detail/parallel.hpp"
 
 namespace ds3d::detail {
@@ -276,22 +277,7 @@ class KnnTreeSmall {
       hi[j] = lo[j];
     }
     if constexpr (kDim == 3) {  // the loop below with the box in registers (same min/max order)
-      double l0 = lo[0], l1 = lo[1], l2 = lo[2], h0 = hi[0], h1 = hi[1], h2 = hi[2];
-      for (auto i = b + 1; i < e; ++i) {
-        const double* p = data + static_cast<std::size_t>(order_[i]) * 3;
-        l0 = std::min(l0, p[0]);
-        h0 = std::max(h0, p[0]);
-        l1 = std::min(l1, p[1]);
-        h1 = std::max(h1, p[1]);
-        l2 = std::min(l2, p[2]);
-        h2 = std::max(h2, p[2]);
-      }
-      lo[0] = l0;
-      lo[1] = l1;
-      lo[2] = l2;
-      hi[0] = h0;
-      hi[1] = h1;
-      hi[2] = h2;
+      extend_box3(data, order_.data(), b + 1, e, lo, hi);
     } else {
       for (auto i = b + 1; i < e; ++i) {
         const double* p = data + static_cast<std::size_t>(order_[i]) * d;

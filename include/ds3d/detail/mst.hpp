@@ -23,6 +23,7 @@
 #endif
 
 #include "ds3d/detail/kdtree_nd.hpp"
+#include "ds3d/detail/box_bounds.hpp"
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/hdbscan.hpp"
 
@@ -990,22 +991,7 @@ class BoruvkaKdTree {
       hi[j] = -std::numeric_limits<double>::infinity();
     }
     if (dim_ == 3) {  // the loop below with the box in registers (same min/max sequence)
-      double l0 = lo[0], l1 = lo[1], l2 = lo[2], h0 = hi[0], h1 = hi[1], h2 = hi[2];
-      for (auto i = b; i < e; ++i) {
-        const double* v = data + static_cast<std::size_t>(order[i]) * 3;
-        l0 = std::min(l0, v[0]);
-        h0 = std::max(h0, v[0]);
-        l1 = std::min(l1, v[1]);
-        h1 = std::max(h1, v[1]);
-        l2 = std::min(l2, v[2]);
-        h2 = std::max(h2, v[2]);
-      }
-      lo[0] = l0;
-      lo[1] = l1;
-      lo[2] = l2;
-      hi[0] = h0;
-      hi[1] = h1;
-      hi[2] = h2;
+      extend_box3(data, order.data(), b, e, lo, hi);
     } else {
       for (auto i = b; i < e; ++i) {
         for (std::size_t j = 0; j < dim_; ++j) {
