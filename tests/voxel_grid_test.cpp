@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "support/preprocess_fixtures.hpp"
@@ -370,6 +371,62 @@ TEST(VoxelGrid, WorkspaceReuseAndMinPointsAnyThreadCount) {
       EXPECT_EQ(rt.representative, r1.representative);
       EXPECT_EQ(rt.num_dropped, r1.num_dropped);
     }
+  }
+}
+
+// The plain overload keeps its scratch in a thread-local workspace: a sequence of calls that
+// grows and shrinks it, switches between the dense and sparse paths and min_points, and
+// includes a call that throws, must give exactly what a fresh workspace gives, on several
+// threads at once.
+TEST(VoxelGrid, PlainCallsReuseThreadScratchExactly) {
+  ds3d::test::Rng rng(11);
+  const Points3f big = ds3d::test::uniform_box(60'000, {-1, -2, -1}, {2, 1, 1}, rng);
+  const Points3f small =
+      ds3d::test::uniform_box(700, {-0.3F, -0.3F, -0.3F}, {0.3F, 0.3F, 0.3F}, rng);
+  Points3f bad(2, 3);
+  bad << 0, 0, 0, 3.0e38F, 0, 0;  // key overflow: throws
+  struct Call {
+    const Points3f* p;
+    double leaf;
+    std::uint32_t min_points;
+  };
+  const std::vector<Call> calls = {{&big, 0.01, 1}, {&small, 0.05, 1}, {&big, 0.1, 3},
+                                   {&bad, 1e-3, 1}, {&big, 0.01, 2},   {&small, 0.002, 1},
+                                   {&big, 0.05, 1}};
+  const auto run = [&](std::vector<VoxelGridResult>* out) {
+    for (const Call& c : calls) {
+      const ds3d::VoxelGridParams prm{.leaf_size = c.leaf, .min_points = c.min_points};
+      try {
+        out->push_back(ds3d::voxel_grid(*c.p, prm));
+      } catch (const ds3d::InvalidArgument&) {
+        out->emplace_back();
+      }
+    }
+  };
+  std::vector<VoxelGridResult> ref;
+  for (const Call& c : calls) {
+    ds3d::VoxelGridWorkspace fresh;
+    const ds3d::VoxelGridParams prm{.leaf_size = c.leaf, .min_points = c.min_points};
+    if (c.p == &bad) {
+      EXPECT_THROW((void)ds3d::voxel_grid(*c.p, prm, fresh), ds3d::InvalidArgument);
+      ref.emplace_back();
+    } else {
+      ref.push_back(ds3d::voxel_grid(*c.p, prm, fresh));
+    }
+  }
+  std::vector<VoxelGridResult> here;
+  run(&here);
+  run(&here);  // second round: every buffer already grown
+  std::vector<VoxelGridResult> other;
+  std::thread t([&] { run(&other); });
+  t.join();
+  ASSERT_EQ(here.size(), 2 * calls.size());
+  ASSERT_EQ(other.size(), calls.size());
+  for (std::size_t i = 0; i < here.size(); ++i) {
+    expect_same(here[i], ref[i % calls.size()], "call " + std::to_string(i));
+  }
+  for (std::size_t i = 0; i < other.size(); ++i) {
+    expect_same(other[i], ref[i], "other thread, call " + std::to_string(i));
   }
 }
 

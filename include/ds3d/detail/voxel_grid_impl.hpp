@@ -720,11 +720,35 @@ void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int thread
   });
 }
 
+/// Bytes held by the buffers of a workspace.
+[[nodiscard]] inline std::size_t workspace_bytes(const VoxelGridWorkspace& ws) noexcept {
+  return 2 * ws.capacity * sizeof(std::uint64_t) + ws.cell_capacity * sizeof(std::uint32_t) +
+         ws.hist.capacity() * sizeof(std::uint32_t) + ws.runs.capacity() * sizeof(std::size_t) +
+         ws.occupied.capacity() * sizeof(std::uint64_t) +
+         ws.rank.capacity() * sizeof(std::uint32_t) + ws.acc.capacity() * sizeof(double) +
+         ws.best.capacity() * sizeof(std::uint64_t);
+}
+
+/// The calling thread's workspace of the plain voxel_grid() overload (one per thread, shared by
+/// every point type).
+[[nodiscard]] inline VoxelGridWorkspace& thread_voxel_workspace() {
+  thread_local VoxelGridWorkspace ws;
+  return ws;
+}
+
 }  // namespace detail
 
 template <PointCloud C>
 VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params) {
-  VoxelGridWorkspace ws;
+  VoxelGridWorkspace& ws = detail::thread_voxel_workspace();
+  // Keep the buffers for the thread's next call unless they outgrew the cap (also when the call
+  // throws): fresh scratch costs page faults of the order of the call itself.
+  struct Trim {
+    VoxelGridWorkspace& ws;
+    ~Trim() {
+      if (detail::workspace_bytes(ws) > kVoxelGridCachedScratchBytes) ws = VoxelGridWorkspace{};
+    }
+  } trim{ws};
   return voxel_grid(cloud, params, ws);
 }
 
