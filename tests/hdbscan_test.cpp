@@ -494,8 +494,9 @@ TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
   // Both 3-D core-distance searches (Prim's KnnTreeSmall, Borůvka's own tree) keep their
   // (k+1)-list in 4-lane registers for k + 1 <= 16 (one to four registers, padded slots) and in
   // memory above; check every register count, the padding and the fallback bitwise against
-  // brute force on tie-heavy integer-grid data.
-  RowMatrixXd x(700, 3);
+  // brute force on tie-heavy integer-grid data. Borůvka's search runs four queries at a time
+  // (one per lane); 703 points leave the last group partial. Both MSTs must weigh the same.
+  RowMatrixXd x(703, 3);
   std::uint64_t state = 5;
   for (Eigen::Index i = 0; i < x.rows(); ++i) {
     for (Eigen::Index j = 0; j < 3; ++j) {
@@ -510,8 +511,9 @@ TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
       rows[i][t] = ds3d::detail::sq_dist_seq(x.data() + i * 3, x.data() + t * 3, 3);
     }
   }
-  for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
-    for (const int k : {1, 3, 4, 5, 8, 10, 11, 12, 15, 16, 21}) {
+  for (const int k : {1, 3, 4, 5, 8, 10, 11, 12, 15, 16, 21}) {
+    std::vector<std::vector<double>> weights;
+    for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
       HdbscanParams p;
       p.min_cluster_size = 5;
       p.min_samples = k;
@@ -523,7 +525,11 @@ TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
         ASSERT_EQ(a.core_distances[i], std::sqrt(row[static_cast<std::size_t>(k)]))
             << to_string(algorithm) << " k " << k << " point " << i;
       }
+      weights.emplace_back();
+      for (const auto& e : a.min_spanning_tree) weights.back().push_back(e.weight);
+      std::sort(weights.back().begin(), weights.back().end());
     }
+    EXPECT_EQ(weights[0], weights[1]) << "k " << k;
   }
 }
 

@@ -914,6 +914,131 @@ class BoruvkaKdTree {
     }
     for (int j = 0; j < kB; ++j) _mm256_storeu_pd(bd + 4 * j, v[j]);
   }
+
+  // Pass 1 of knn_and_seeds for four queries at once, one per AVX2 lane: the tree positions
+  // p0 .. p0 + cnt - 1 (cnt in 1..4; missing lanes repeat the last query). Each lane keeps its
+  // list of the kk smallest squared distances in kL registers, slot i of every lane in v[i],
+  // ascending, the first kL - kk slots held at -inf so that v[kL - 1] is the kk-th smallest.
+  // Every point of a scanned leaf is merged into all four lists, branch-free, by
+  // v[i] = min(v[i], max(v[i-1], d)) (no per-hit bit extraction or serial dependency between
+  // the queries). The walk starts at the smallest node holding the four positions (its whole
+  // subtree: their own points), then visits each ancestor's other subtree, nearest child first;
+  // a node is skipped when its box is beyond the current kk-th value in every lane (box² > v,
+  // so the scanned leaves cover every lane's core ball, boundary ties included). Per lane the
+  // distances and box gaps are those of sq_dist_seq and box_dist2 (same operations, same
+  // order), so each lane's kk-th value is bitwise brute force. The scanned leaves are appended
+  // to `seen`; out_r2[l] receives lane l's kk-th smallest squared distance.
+  template <int kL>
+  void knn_group_avx2(std::uint32_t p0, std::uint32_t cnt, std::size_t kk, double* out_r2,
+                      std::vector<std::uint32_t>& seen) const {
+    const double inf = std::numeric_limits<double>::infinity();
+    alignas(32) double qc[3][4];
+    for (std::uint32_t l = 0; l < 4; ++l) {
+      const double* p = pts_.data() + static_cast<std::size_t>(p0 + std::min(l, cnt - 1)) * 3;
+      for (int j = 0; j < 3; ++j) qc[j][l] = p[j];
+    }
+    const __m256d qx = _mm256_load_pd(qc[0]);
+    const __m256d qy = _mm256_load_pd(qc[1]);
+    const __m256d qz = _mm256_load_pd(qc[2]);
+    __m256d v[kL];
+    for (int i = 0; i < kL; ++i) {
+      v[i] = _mm256_set1_pd(static_cast<std::size_t>(i) < kL - kk ? -inf : inf);
+    }
+    const __m256d zero = _mm256_setzero_pd();
+    auto box2 = [&](std::size_t k) {
+      const double* lo = lo_.data() + k * 3;
+      const double* hi = hi_.data() + k * 3;
+      const __m256d gx = _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo), qx),
+                                                     _mm256_sub_pd(qx, _mm256_broadcast_sd(hi))),
+                                       zero);
+      const __m256d gy =
+          _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 1), qy),
+                                      _mm256_sub_pd(qy, _mm256_broadcast_sd(hi + 1))),
+                        zero);
+      const __m256d gz =
+          _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 2), qz),
+                                      _mm256_sub_pd(qz, _mm256_broadcast_sd(hi + 2))),
+                        zero);
+      __m256d s = no_contract256(_mm256_mul_pd(gx, gx));
+      s = _mm256_add_pd(s, no_contract256(_mm256_mul_pd(gy, gy)));
+      return _mm256_add_pd(s, no_contract256(_mm256_mul_pd(gz, gz)));
+    };
+    auto keep = [&](__m256d b2) {
+      return _mm256_movemask_pd(_mm256_cmp_pd(b2, v[kL - 1], _CMP_LE_OQ)) != 0;
+    };
+    auto scan = [&](const Node& nd) {
+      seen.push_back(static_cast<std::uint32_t>(&nd - nodes_.data()));
+      const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
+      for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
+        const __m256d dx = _mm256_sub_pd(_mm256_broadcast_sd(p), qx);
+        const __m256d dy = _mm256_sub_pd(_mm256_broadcast_sd(p + 1), qy);
+        const __m256d dz = _mm256_sub_pd(_mm256_broadcast_sd(p + 2), qz);
+        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+#pragma GCC unroll 16
+        for (int i = kL - 1; i > 0; --i) v[i] = _mm256_min_pd(v[i], _mm256_max_pd(v[i - 1], d2));
+        v[0] = _mm256_min_pd(v[0], d2);
+      }
+    };
+    struct alignas(32) Entry {
+      __m256d box2;
+      std::uint32_t node;
+    };
+    Entry stack[128];
+    auto subtree = [&](std::uint32_t root, __m256d root_box2) {
+      int top = 0;
+      stack[top++] = {root_box2, root};
+      while (top > 0) {
+        const Entry en = stack[--top];
+        if (!keep(en.box2)) continue;
+        const Node& nd = nodes_[en.node];
+        if (nd.left < 0) {
+          scan(nd);
+          continue;
+        }
+        const auto l = static_cast<std::uint32_t>(nd.left);
+        const auto r = static_cast<std::uint32_t>(nd.right);
+        const Entry el{box2(l), l};
+        const Entry er{box2(r), r};
+        // Nearer child (by lane 0) on top.
+        if (_mm256_cvtsd_f64(el.box2) <= _mm256_cvtsd_f64(er.box2)) {
+          if (keep(er.box2)) stack[top++] = er;
+          if (keep(el.box2)) stack[top++] = el;
+        } else {
+          if (keep(el.box2)) stack[top++] = el;
+          if (keep(er.box2)) stack[top++] = er;
+        }
+      }
+    };
+    // Smallest node holding the group: descend from the root while a child holds it all.
+    std::uint32_t start = 0;
+    for (;;) {
+      const Node& nd = nodes_[start];
+      if (nd.left < 0) break;
+      const auto l = static_cast<std::uint32_t>(nd.left);
+      const auto r = static_cast<std::uint32_t>(nd.right);
+      if (p0 + cnt <= nodes_[l].end) {
+        start = l;
+      } else if (p0 >= nodes_[r].begin) {
+        start = r;
+      } else {
+        break;
+      }
+    }
+    subtree(start, zero);
+    for (std::uint32_t c = start; nodes_[c].parent >= 0;) {
+      const auto p = static_cast<std::uint32_t>(nodes_[c].parent);
+      const Node& pn = nodes_[p];
+      const auto sib =
+          static_cast<std::uint32_t>(pn.left == static_cast<std::int32_t>(c) ? pn.right : pn.left);
+      c = p;
+      subtree(sib, box2(sib));
+    }
+    alignas(32) double r[4];
+    _mm256_store_pd(r, v[kL - 1]);
+    for (std::uint32_t l = 0; l < cnt; ++l) out_r2[l] = r[l];
+  }
 #endif
 
   // Core distances and first candidate edges, both exact.
@@ -931,26 +1056,58 @@ class BoruvkaKdTree {
   void knn_and_seeds(std::size_t kk) {
     const double inf = std::numeric_limits<double>::infinity();
     std::vector<double> r2(n_);
-    std::vector<std::vector<std::uint32_t>> near(leaves_.size());  // leaves scanned per leaf
+    // Query units: groups of four consecutive tree positions for the 4-lane search
+    // (knn_group_avx2: AVX2, D = 3, kk <= 16), else leaves. unit_begin[u] is the first tree
+    // position of unit u; near[u] lists, in tree order, the leaves scanned for its queries.
+    int lanes_l = 0;  // kL of knn_group_avx2, 0 = per-query search
+#if defined(__AVX2__)
+    if (dim_ == 3 && kk <= 16) lanes_l = kk <= 4 ? 4 : kk <= 8 ? 8 : kk <= 12 ? 12 : 16;
+#endif
+    std::vector<std::uint32_t> unit_begin;
+    if (lanes_l > 0) {
+      unit_begin.reserve(n_ / 4 + 2);
+      for (std::size_t p = 0; p < n_; p += 4) unit_begin.push_back(static_cast<std::uint32_t>(p));
+    } else {
+      for (const auto leaf : leaves_) unit_begin.push_back(nodes_[leaf].begin);
+    }
+    const std::size_t units = unit_begin.size();
+    unit_begin.push_back(static_cast<std::uint32_t>(n_));
+    std::vector<std::vector<std::uint32_t>> near(units);
     cand_w_.assign(n_, inf);
     cand_t_.assign(n_, 0U);
     const std::size_t chunks = std::size_t{16} * static_cast<std::size_t>(std::max(1, threads_));
-    parallel_chunks(
-        leaves_.size(), chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
-          std::vector<double> bd((kk + 3) & ~std::size_t{3});  // slots for knn_scan_avx2
-          std::vector<std::uint32_t> mark(nodes_.size(), 0U);
-          for (std::size_t li = b; li < e; ++li) {
-            const auto leaf = leaves_[li];
-            const Node& ln = nodes_[leaf];
-            auto& seen = near[li];
-            for (auto s = ln.begin; s < ln.end; ++s) {
-              knn_query(s, leaf, kk, bd.data(), seen, mark, static_cast<std::uint32_t>(li + 1));
-              r2[s] = bd[kk - 1];
-              core_[s] = std::sqrt(bd[kk - 1]);
-            }
-            std::sort(seen.begin(), seen.end());  // leaf ids in preorder = tree order
+    parallel_chunks(units, chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
+      if (lanes_l > 0) {
+#if defined(__AVX2__)
+        for (std::size_t u = b; u < e; ++u) {
+          const auto p0 = unit_begin[u];
+          const auto cnt = unit_begin[u + 1] - p0;
+          switch (lanes_l) {
+            case 4: knn_group_avx2<4>(p0, cnt, kk, r2.data() + p0, near[u]); break;
+            case 8: knn_group_avx2<8>(p0, cnt, kk, r2.data() + p0, near[u]); break;
+            case 12: knn_group_avx2<12>(p0, cnt, kk, r2.data() + p0, near[u]); break;
+            default: knn_group_avx2<16>(p0, cnt, kk, r2.data() + p0, near[u]); break;
           }
-        });
+          for (auto s = p0; s < p0 + cnt; ++s) core_[s] = std::sqrt(r2[s]);
+          std::sort(near[u].begin(), near[u].end());  // leaf ids in preorder = tree order
+        }
+#endif
+        return;
+      }
+      std::vector<double> bd((kk + 3) & ~std::size_t{3});  // slots for knn_scan_avx2
+      std::vector<std::uint32_t> mark(nodes_.size(), 0U);
+      for (std::size_t li = b; li < e; ++li) {
+        const auto leaf = leaves_[li];
+        const Node& ln = nodes_[leaf];
+        auto& seen = near[li];
+        for (auto s = ln.begin; s < ln.end; ++s) {
+          knn_query(s, leaf, kk, bd.data(), seen, mark, static_cast<std::uint32_t>(li + 1));
+          r2[s] = bd[kk - 1];
+          core_[s] = std::sqrt(bd[kk - 1]);
+        }
+        std::sort(seen.begin(), seen.end());  // leaf ids in preorder = tree order
+      }
+    });
     for (std::size_t k = nodes_.size(); k-- > 0;) {
       auto& nd = nodes_[k];
       if (nd.left < 0) {
@@ -962,20 +1119,17 @@ class BoruvkaKdTree {
                                nodes_[static_cast<std::size_t>(nd.right)].min_core);
       }
     }
-    parallel_chunks(leaves_.size(), chunks, threads_,
-                    [&](std::size_t b, std::size_t e, std::size_t) {
-                      for (std::size_t li = b; li < e; ++li) {
-                        const auto leaf = leaves_[li];
-                        const Node& ln = nodes_[leaf];
-                        for (auto s = ln.begin; s < ln.end; ++s) {
-                          double best_w = inf;
-                          std::uint32_t best_t = 0;
-                          seed_query(s, near[li].data(), near[li].size(), r2[s], best_w, best_t);
-                          cand_w_[s] = best_w;
-                          cand_t_[s] = best_t;
-                        }
-                      }
-                    });
+    parallel_chunks(units, chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
+      for (std::size_t u = b; u < e; ++u) {
+        for (auto s = unit_begin[u]; s < unit_begin[u + 1]; ++s) {
+          double best_w = inf;
+          std::uint32_t best_t = 0;
+          seed_query(s, near[u].data(), near[u].size(), r2[s], best_w, best_t);
+          cand_w_[s] = best_w;
+          cand_t_[s] = best_t;
+        }
+      }
+    });
   }
 
   std::int32_t build_node(const double* data, std::vector<std::uint32_t>& order, std::uint32_t b,
