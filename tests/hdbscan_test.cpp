@@ -533,6 +533,54 @@ TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
   }
 }
 
+TEST(Hdbscan, BoruvkaKnnLaneModesMatchBruteForceBitwise) {
+  // BoruvkaKdTree finds 3-D core distances with 8 queries per tree walk (AVX-512F lanes), 4
+  // (AVX2) or one walk per query; the tree walks pick the first candidate edges (seeds) from the
+  // leaves they scanned. Every mode must give brute-force core distances and the same MST, edge
+  // for edge, on tie-heavy data, for every list-register count (k + 1 = 2..16) and beyond (the
+  // per-query fallback), with a partial last group, for 1 and 3 threads. Modes the build or CPU
+  // cannot run fall back to the automatic choice.
+  using ds3d::detail::KnnLanes;
+  for (const Eigen::Index n : {61, 1003}) {
+    RowMatrixXd x(n, 3);
+    std::uint64_t state = 17;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      for (Eigen::Index j = 0; j < 3; ++j) {
+        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+        x(i, j) = static_cast<double>((state >> 33) % 30) + 50.0 * static_cast<double>(i % 5);
+      }
+    }
+    const auto un = static_cast<std::size_t>(n);
+    for (const std::size_t k : {1U, 3U, 7U, 10U, 11U, 15U, 20U}) {
+      std::vector<double> expect(un);
+      std::vector<double> row(un);
+      for (std::size_t i = 0; i < un; ++i) {
+        for (std::size_t t = 0; t < un; ++t) {
+          row[t] = ds3d::detail::sq_dist_seq(x.data() + i * 3, x.data() + t * 3, 3);
+        }
+        std::nth_element(row.begin(), row.begin() + static_cast<std::ptrdiff_t>(k), row.end());
+        expect[i] = std::sqrt(row[k]);
+      }
+      std::vector<ds3d::MstEdge> first;
+      for (const auto mode : {KnnLanes::kPerQuery, KnnLanes::kAvx2, KnnLanes::kAvx512}) {
+        for (const int threads : {1, 3}) {
+          std::vector<double> core;
+          const auto mst =
+              ds3d::detail::boruvka_kdtree(x.data(), un, 3, k, threads, core, mode);
+          ASSERT_EQ(core, expect) << "n " << n << " k " << k << " mode " << int(mode);
+          ASSERT_EQ(mst.size(), un - 1);
+          if (first.empty()) first = mst;
+          for (std::size_t e = 0; e < mst.size(); ++e) {
+            ASSERT_EQ(mst[e].from, first[e].from) << "n " << n << " k " << k << " edge " << e;
+            ASSERT_EQ(mst[e].to, first[e].to) << "n " << n << " k " << k << " edge " << e;
+            ASSERT_EQ(mst[e].weight, first[e].weight) << "n " << n << " k " << k << " edge " << e;
+          }
+        }
+      }
+    }
+  }
+}
+
 TEST(Hdbscan, PrimStepsMatchTextbookPrimBitwise) {
   // prim_dense streams keys through SIMD steps (AVX-512F, AVX2, SSE2 for D = 3, else generic),
   // compacts retired slots and parks points whose key reached their own core distance in a heap.

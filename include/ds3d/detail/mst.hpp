@@ -35,6 +35,12 @@ namespace ds3d::detail {
 // prim_step_available) falls back to kAuto's choice.
 enum class PrimStep : std::uint8_t { kAuto, kGeneric, kSse2, kAvx2, kAvx512 };
 
+// How BoruvkaKdTree finds the core distances (D = 3, k + 1 <= 16): several queries per tree
+// walk, one per SIMD lane (kAvx2: 4, kAvx512: 8), or one walk per query (kPerQuery, also used for
+// other D and k). kAuto picks the widest the build and the CPU run; a forced mode that cannot run
+// falls back to kAuto's choice. All give bitwise the same results (tests run each).
+enum class KnnLanes : std::uint8_t { kAuto, kPerQuery, kAvx2, kAvx512 };
+
 // prim_dense keeps its slot count a multiple of this (the widest step's lane count).
 inline constexpr std::size_t kPrimPad = 8;
 
@@ -543,8 +549,9 @@ class BoruvkaKdTree {
  public:
   /// Builds the tree over `data` (n × dim, row-major), computes every point's core distance
   /// (distance to its k-th nearest other point, 1 <= k < n) and seeds the candidate edges.
-  BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, std::size_t k, int num_threads)
-      : n_(n), dim_(dim), threads_(num_threads) {
+  BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, std::size_t k, int num_threads,
+                KnnLanes lanes = KnnLanes::kAuto)
+      : n_(n), dim_(dim), threads_(num_threads), lanes_(lanes) {
     perm_.resize(n);
     std::iota(perm_.begin(), perm_.end(), 0U);
     pts_.resize(n * dim);
@@ -879,6 +886,25 @@ class BoruvkaKdTree {
     }
   }
 
+  // Smallest node holding tree positions p0 .. p0 + cnt - 1: descends from the root while one
+  // child holds them all.
+  [[nodiscard]] std::uint32_t group_start(std::uint32_t p0, std::uint32_t cnt) const {
+    std::uint32_t start = 0;
+    for (;;) {
+      const Node& nd = nodes_[start];
+      if (nd.left < 0) return start;
+      const auto l = static_cast<std::uint32_t>(nd.left);
+      const auto r = static_cast<std::uint32_t>(nd.right);
+      if (p0 + cnt <= nodes_[l].end) {
+        start = l;
+      } else if (p0 >= nodes_[r].begin) {
+        start = r;
+      } else {
+        return start;
+      }
+    }
+  }
+
 #if defined(__AVX2__)
   // knn_scan with the list held in kB 4-lane registers (4·kB >= kk slots, ascending; bd must
   // have 4·kB slots). The merge runs on whole registers: bd[i-1] is the list shifted up one lane
@@ -1011,21 +1037,7 @@ class BoruvkaKdTree {
         }
       }
     };
-    // Smallest node holding the group: descend from the root while a child holds it all.
-    std::uint32_t start = 0;
-    for (;;) {
-      const Node& nd = nodes_[start];
-      if (nd.left < 0) break;
-      const auto l = static_cast<std::uint32_t>(nd.left);
-      const auto r = static_cast<std::uint32_t>(nd.right);
-      if (p0 + cnt <= nodes_[l].end) {
-        start = l;
-      } else if (p0 >= nodes_[r].begin) {
-        start = r;
-      } else {
-        break;
-      }
-    }
+    const std::uint32_t start = group_start(p0, cnt);
     subtree(start, zero);
     for (std::uint32_t c = start; nodes_[c].parent >= 0;) {
       const auto p = static_cast<std::uint32_t>(nodes_[c].parent);
@@ -1039,6 +1051,113 @@ class BoruvkaKdTree {
     _mm256_store_pd(r, v[kL - 1]);
     for (std::uint32_t l = 0; l < cnt; ++l) out_r2[l] = r[l];
   }
+#endif
+
+#if defined(DS3D_HDBSCAN_AVX512)
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+  // knn_group_avx2 with eight queries, one per AVX-512 lane (the list in kL of the 32 zmm
+  // registers). Run-time dispatch; written without lambdas, which would not inherit the target.
+  [[nodiscard]] __attribute__((target("avx512f"))) __m512d box2_avx512(std::size_t k, __m512d qx,
+                                                                      __m512d qy,
+                                                                      __m512d qz) const {
+    const double* lo = lo_.data() + k * 3;
+    const double* hi = hi_.data() + k * 3;
+    const __m512d zero = _mm512_setzero_pd();
+    const __m512d gx = _mm512_max_pd(_mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(lo[0]), qx),
+                                                   _mm512_sub_pd(qx, _mm512_set1_pd(hi[0]))),
+                                     zero);
+    const __m512d gy = _mm512_max_pd(_mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(lo[1]), qy),
+                                                   _mm512_sub_pd(qy, _mm512_set1_pd(hi[1]))),
+                                     zero);
+    const __m512d gz = _mm512_max_pd(_mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(lo[2]), qz),
+                                                   _mm512_sub_pd(qz, _mm512_set1_pd(hi[2]))),
+                                     zero);
+    __m512d s = no_contract_v512(_mm512_mul_pd(gx, gx));
+    s = _mm512_add_pd(s, no_contract_v512(_mm512_mul_pd(gy, gy)));
+    return _mm512_add_pd(s, no_contract_v512(_mm512_mul_pd(gz, gz)));
+  }
+
+  template <int kL>
+  __attribute__((target("avx512f"))) void knn_group_avx512(std::uint32_t p0, std::uint32_t cnt,
+                                                           std::size_t kk, double* out_r2,
+                                                           std::vector<std::uint32_t>& seen) const {
+    const double inf = std::numeric_limits<double>::infinity();
+    alignas(64) double qc[3][8];
+    for (std::uint32_t l = 0; l < 8; ++l) {
+      const double* p = pts_.data() + static_cast<std::size_t>(p0 + std::min(l, cnt - 1)) * 3;
+      for (int j = 0; j < 3; ++j) qc[j][l] = p[j];
+    }
+    const __m512d qx = _mm512_load_pd(qc[0]);
+    const __m512d qy = _mm512_load_pd(qc[1]);
+    const __m512d qz = _mm512_load_pd(qc[2]);
+    __m512d v[kL];
+    for (int i = 0; i < kL; ++i) {
+      v[i] = _mm512_set1_pd(static_cast<std::size_t>(i) < kL - kk ? -inf : inf);
+    }
+    struct alignas(64) Entry {
+      __m512d box2;
+      std::uint32_t node;
+    };
+    Entry stack[128];
+    const std::uint32_t start = group_start(p0, cnt);
+    // The start node's subtree, then each ancestor's other child's subtree.
+    for (std::uint32_t c = start, root = start;;) {
+      int top = 0;
+      stack[top++] = {root == start ? _mm512_setzero_pd() : box2_avx512(root, qx, qy, qz), root};
+      while (top > 0) {
+        const Entry en = stack[--top];
+        if (_mm512_cmp_pd_mask(en.box2, v[kL - 1], _CMP_LE_OQ) == 0) continue;
+        const Node& nd = nodes_[en.node];
+        if (nd.left < 0) {
+          seen.push_back(en.node);
+          const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
+          for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
+            const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(p[0]), qx);
+            const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(p[1]), qy);
+            const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(p[2]), qz);
+            __m512d d2 = no_contract_v512(_mm512_mul_pd(dx, dx));
+            d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dy, dy)));
+            d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dz, dz)));
+#pragma GCC unroll 16
+            for (int i = kL - 1; i > 0; --i) {
+              v[i] = _mm512_min_pd(v[i], _mm512_max_pd(v[i - 1], d2));
+            }
+            v[0] = _mm512_min_pd(v[0], d2);
+          }
+          continue;
+        }
+        const auto l = static_cast<std::uint32_t>(nd.left);
+        const auto r = static_cast<std::uint32_t>(nd.right);
+        const Entry el{box2_avx512(l, qx, qy, qz), l};
+        const Entry er{box2_avx512(r, qx, qy, qz), r};
+        const bool keep_l = _mm512_cmp_pd_mask(el.box2, v[kL - 1], _CMP_LE_OQ) != 0;
+        const bool keep_r = _mm512_cmp_pd_mask(er.box2, v[kL - 1], _CMP_LE_OQ) != 0;
+        // Nearer child (by lane 0) on top.
+        if (_mm512_cvtsd_f64(el.box2) <= _mm512_cvtsd_f64(er.box2)) {
+          if (keep_r) stack[top++] = er;
+          if (keep_l) stack[top++] = el;
+        } else {
+          if (keep_l) stack[top++] = el;
+          if (keep_r) stack[top++] = er;
+        }
+      }
+      if (nodes_[c].parent < 0) break;
+      const auto p = static_cast<std::uint32_t>(nodes_[c].parent);
+      const Node& pn = nodes_[p];
+      root =
+          static_cast<std::uint32_t>(pn.left == static_cast<std::int32_t>(c) ? pn.right : pn.left);
+      c = p;
+    }
+    alignas(64) double r[8];
+    _mm512_store_pd(r, v[kL - 1]);
+    for (std::uint32_t l = 0; l < cnt; ++l) out_r2[l] = r[l];
+  }
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 #endif
 
   // Core distances and first candidate edges, both exact.
@@ -1056,17 +1175,35 @@ class BoruvkaKdTree {
   void knn_and_seeds(std::size_t kk) {
     const double inf = std::numeric_limits<double>::infinity();
     std::vector<double> r2(n_);
-    // Query units: groups of four consecutive tree positions for the 4-lane search
-    // (knn_group_avx2: AVX2, D = 3, kk <= 16), else leaves. unit_begin[u] is the first tree
-    // position of unit u; near[u] lists, in tree order, the leaves scanned for its queries.
-    int lanes_l = 0;  // kL of knn_group_avx2, 0 = per-query search
+    // Query units: groups of `width` consecutive tree positions searched in one walk, one per
+    // SIMD lane (knn_group_avx512: 8, knn_group_avx2: 4; D = 3, kk <= 16, see KnnLanes), else
+    // leaves (per-query walks). unit_begin[u] is the first tree position of unit u; near[u]
+    // lists, in tree order, the leaves scanned for its queries. kl: list registers per lane.
+    [[maybe_unused]] const std::size_t kl = kk <= 4 ? 4 : kk <= 8 ? 8 : kk <= 12 ? 12 : 16;
+    std::size_t width = 0;  // queries per walk (SIMD lanes), 0 = per-query search
+    if (dim_ == 3 && kk <= 16 && lanes_ != KnnLanes::kPerQuery) {
+      bool avx2 = false;
+      bool avx512 = false;
 #if defined(__AVX2__)
-    if (dim_ == 3 && kk <= 16) lanes_l = kk <= 4 ? 4 : kk <= 8 ? 8 : kk <= 12 ? 12 : 16;
+      avx2 = true;
 #endif
+#if defined(DS3D_HDBSCAN_AVX512)
+      avx512 = cpu_has_avx512();
+#endif
+      if (lanes_ == KnnLanes::kAvx2 && avx2) {
+        width = 4;
+      } else if (avx512) {
+        width = 8;
+      } else if (avx2) {
+        width = 4;
+      }
+    }
     std::vector<std::uint32_t> unit_begin;
-    if (lanes_l > 0) {
-      unit_begin.reserve(n_ / 4 + 2);
-      for (std::size_t p = 0; p < n_; p += 4) unit_begin.push_back(static_cast<std::uint32_t>(p));
+    if (width > 0) {
+      unit_begin.reserve(n_ / width + 2);
+      for (std::size_t p = 0; p < n_; p += width) {
+        unit_begin.push_back(static_cast<std::uint32_t>(p));
+      }
     } else {
       for (const auto leaf : leaves_) unit_begin.push_back(nodes_[leaf].begin);
     }
@@ -1077,21 +1214,33 @@ class BoruvkaKdTree {
     cand_t_.assign(n_, 0U);
     const std::size_t chunks = std::size_t{16} * static_cast<std::size_t>(std::max(1, threads_));
     parallel_chunks(units, chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
-      if (lanes_l > 0) {
-#if defined(__AVX2__)
+      if (width > 0) {
         for (std::size_t u = b; u < e; ++u) {
           const auto p0 = unit_begin[u];
           const auto cnt = unit_begin[u + 1] - p0;
-          switch (lanes_l) {
-            case 4: knn_group_avx2<4>(p0, cnt, kk, r2.data() + p0, near[u]); break;
-            case 8: knn_group_avx2<8>(p0, cnt, kk, r2.data() + p0, near[u]); break;
-            case 12: knn_group_avx2<12>(p0, cnt, kk, r2.data() + p0, near[u]); break;
-            default: knn_group_avx2<16>(p0, cnt, kk, r2.data() + p0, near[u]); break;
+          double* out = r2.data() + p0;
+          if (width == 8) {
+#if defined(DS3D_HDBSCAN_AVX512)
+            switch (kl) {
+              case 4: knn_group_avx512<4>(p0, cnt, kk, out, near[u]); break;
+              case 8: knn_group_avx512<8>(p0, cnt, kk, out, near[u]); break;
+              case 12: knn_group_avx512<12>(p0, cnt, kk, out, near[u]); break;
+              default: knn_group_avx512<16>(p0, cnt, kk, out, near[u]); break;
+            }
+#endif
+          } else {
+#if defined(__AVX2__)
+            switch (kl) {
+              case 4: knn_group_avx2<4>(p0, cnt, kk, out, near[u]); break;
+              case 8: knn_group_avx2<8>(p0, cnt, kk, out, near[u]); break;
+              case 12: knn_group_avx2<12>(p0, cnt, kk, out, near[u]); break;
+              default: knn_group_avx2<16>(p0, cnt, kk, out, near[u]); break;
+            }
+#endif
           }
           for (auto s = p0; s < p0 + cnt; ++s) core_[s] = std::sqrt(r2[s]);
           std::sort(near[u].begin(), near[u].end());  // leaf ids in preorder = tree order
         }
-#endif
         return;
       }
       std::vector<double> bd((kk + 3) & ~std::size_t{3});  // slots for knn_scan_avx2
@@ -1385,6 +1534,7 @@ class BoruvkaKdTree {
 
   std::size_t n_, dim_;
   int threads_;
+  KnnLanes lanes_;
   std::vector<std::uint32_t> perm_;  // tree position -> point id
   std::vector<double> pts_;          // coordinates in tree order
   std::vector<double> core_;         // core distances in tree order
@@ -1405,12 +1555,13 @@ class BoruvkaKdTree {
 // Borůvka, sharing one tree.
 inline std::vector<MstEdge> boruvka_kdtree(const double* data, std::size_t n, std::size_t dim,
                                            std::size_t k, int num_threads,
-                                           std::vector<double>& core) {
+                                           std::vector<double>& core,
+                                           KnnLanes lanes = KnnLanes::kAuto) {
   if (n < 2) {
     core.assign(n, 0.0);
     return {};
   }
-  BoruvkaKdTree t(data, n, dim, k, num_threads);
+  BoruvkaKdTree t(data, n, dim, k, num_threads, lanes);
   core = t.core_distances();
   return t.run();
 }
