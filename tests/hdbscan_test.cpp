@@ -455,8 +455,9 @@ TEST(Hdbscan, SameResultForAnyThreadCount) {
 
 TEST(Hdbscan, SmallKnnTreeMatchesBruteForceForAnyThreadCount) {
   // Prim's core distances come from KnnTreeSmall's leaf-batched search (n <=
-  // detail::kSmallKnnMaxPoints), Borůvka's from the search over its own tree (any n). Check both
-  // bitwise against a brute-force (k+1)-th smallest distance, in 2, 3 and 5 dimensions.
+  // detail::kSmallKnnMaxPoints; in 3-D only without AVX2 or for k + 1 > 16), Borůvka's (and 3-D
+  // Prim's) from the search over Borůvka's tree (any n). Check both bitwise against a
+  // brute-force (k+1)-th smallest distance, in 2, 3 and 5 dimensions.
   for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
     for (const int dim : {2, 3, 5}) {
       RowMatrixXd x(900, dim);  // clumped integer-grid points: many exact distance ties
@@ -491,9 +492,9 @@ TEST(Hdbscan, SmallKnnTreeMatchesBruteForceForAnyThreadCount) {
 }
 
 TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
-  // Both 3-D core-distance searches (Prim's KnnTreeSmall, Borůvka's own tree) keep their
-  // (k+1)-list in 4-lane registers for k + 1 <= 16 (one to four registers, padded slots) and in
-  // memory above; check every register count, the padding and the fallback bitwise against
+  // The 3-D core-distance searches keep their (k+1)-lists in registers for k + 1 <= 16 (one to
+  // four per lane group, padded slots) and in memory above (KnnTreeSmall, per-query walks);
+  // check every register count, the padding and the fallback bitwise against
   // brute force on tie-heavy integer-grid data. Borůvka's search runs four queries at a time
   // (one per lane); 703 points leave the last group partial. Both MSTs must weigh the same.
   RowMatrixXd x(703, 3);
@@ -534,8 +535,8 @@ TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
 }
 
 TEST(Hdbscan, BoruvkaKnnLaneModesMatchBruteForceBitwise) {
-  // BoruvkaKdTree finds 3-D core distances with 8 queries per tree walk (AVX-512F lanes), 4
-  // (AVX2) or one walk per query; the tree walks pick the first candidate edges (seeds) from the
+  // BoruvkaKdTree finds 3-D core distances (for Borůvka, and alone for Prim) with 8 queries per
+  // tree walk (AVX-512F lanes), 4 (AVX2) or one walk per query; the walks pick the seeds from the
   // leaves they scanned. Every mode must give brute-force core distances and the same MST, edge
   // for edge, on tie-heavy data, for every list-register count (k + 1 = 2..16) and beyond (the
   // per-query fallback), with a partial last group, for 1 and 3 threads. Modes the build or CPU
@@ -561,8 +562,13 @@ TEST(Hdbscan, BoruvkaKnnLaneModesMatchBruteForceBitwise) {
         std::nth_element(row.begin(), row.begin() + static_cast<std::ptrdiff_t>(k), row.end());
         expect[i] = std::sqrt(row[k]);
       }
+      // KnnTreeSmall, which 3-D Prim no longer uses where the lane search runs.
+      EXPECT_EQ(ds3d::detail::knn_core_distances({x.data(), un, 3}, k, 1), expect) << "k " << k;
       std::vector<ds3d::MstEdge> first;
       for (const auto mode : {KnnLanes::kPerQuery, KnnLanes::kAvx2, KnnLanes::kAvx512}) {
+        // The core-distance-only search that 3-D Prim uses.
+        ASSERT_EQ(ds3d::detail::boruvka_core_distances(x.data(), un, 3, k, 2, mode), expect)
+            << "n " << n << " k " << k << " mode " << int(mode);
         for (const int threads : {1, 3}) {
           std::vector<double> core;
           const auto mst =

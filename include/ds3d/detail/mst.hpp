@@ -347,6 +347,23 @@ inline bool cpu_has_avx2() {
 }
 #endif
 
+// Queries per BoruvkaKdTree core-distance walk (SIMD lanes) for dimension dim, list length kk =
+// k + 1 and mode `lanes`: 8 (AVX-512F), 4 (AVX2) or 0 (one walk per query).
+inline std::size_t knn_lane_width(std::size_t dim, std::size_t kk, KnnLanes lanes) {
+  if (dim != 3 || kk > 16 || lanes == KnnLanes::kPerQuery) return 0;
+  bool avx2 = false;
+  bool avx512 = false;
+#if defined(__AVX2__)
+  avx2 = true;
+#endif
+#if defined(DS3D_HDBSCAN_AVX512)
+  avx512 = cpu_has_avx512();
+#endif
+  if (lanes == KnnLanes::kAvx2 && avx2) return 4;
+  if (avx512) return 8;
+  return avx2 ? 4 : 0;
+}
+
 inline bool prim_step_available(PrimStep step, std::size_t dim) {
   switch (step) {
     case PrimStep::kGeneric:
@@ -549,9 +566,11 @@ class BoruvkaKdTree {
  public:
   /// Builds the tree over `data` (n × dim, row-major), computes every point's core distance
   /// (distance to its k-th nearest other point, 1 <= k < n) and seeds the candidate edges.
+  /// With seeds = false only the core distances are computed (no candidate edges: run() must
+  /// not be called).
   BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, std::size_t k, int num_threads,
-                KnnLanes lanes = KnnLanes::kAuto)
-      : n_(n), dim_(dim), threads_(num_threads), lanes_(lanes) {
+                KnnLanes lanes = KnnLanes::kAuto, bool seeds = true)
+      : n_(n), dim_(dim), threads_(num_threads), lanes_(lanes), seeds_(seeds) {
     perm_.resize(n);
     std::iota(perm_.begin(), perm_.end(), 0U);
     pts_.resize(n * dim);
@@ -1180,24 +1199,7 @@ class BoruvkaKdTree {
     // leaves (per-query walks). unit_begin[u] is the first tree position of unit u; near[u]
     // lists, in tree order, the leaves scanned for its queries. kl: list registers per lane.
     [[maybe_unused]] const std::size_t kl = kk <= 4 ? 4 : kk <= 8 ? 8 : kk <= 12 ? 12 : 16;
-    std::size_t width = 0;  // queries per walk (SIMD lanes), 0 = per-query search
-    if (dim_ == 3 && kk <= 16 && lanes_ != KnnLanes::kPerQuery) {
-      bool avx2 = false;
-      bool avx512 = false;
-#if defined(__AVX2__)
-      avx2 = true;
-#endif
-#if defined(DS3D_HDBSCAN_AVX512)
-      avx512 = cpu_has_avx512();
-#endif
-      if (lanes_ == KnnLanes::kAvx2 && avx2) {
-        width = 4;
-      } else if (avx512) {
-        width = 8;
-      } else if (avx2) {
-        width = 4;
-      }
-    }
+    const std::size_t width = knn_lane_width(dim_, kk, lanes_);  // 0 = per-query search
     std::vector<std::uint32_t> unit_begin;
     if (width > 0) {
       unit_begin.reserve(n_ / width + 2);
@@ -1209,36 +1211,42 @@ class BoruvkaKdTree {
     }
     const std::size_t units = unit_begin.size();
     unit_begin.push_back(static_cast<std::uint32_t>(n_));
-    std::vector<std::vector<std::uint32_t>> near(units);
+    std::vector<std::vector<std::uint32_t>> near(seeds_ || width == 0 ? units : 0);
     cand_w_.assign(n_, inf);
     cand_t_.assign(n_, 0U);
     const std::size_t chunks = std::size_t{16} * static_cast<std::size_t>(std::max(1, threads_));
     parallel_chunks(units, chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
       if (width > 0) {
+        std::vector<std::uint32_t> scratch;  // scanned leaves when no seeds are wanted
         for (std::size_t u = b; u < e; ++u) {
           const auto p0 = unit_begin[u];
           const auto cnt = unit_begin[u + 1] - p0;
           double* out = r2.data() + p0;
+          auto& seen = seeds_ ? near[u] : scratch;
           if (width == 8) {
 #if defined(DS3D_HDBSCAN_AVX512)
             switch (kl) {
-              case 4: knn_group_avx512<4>(p0, cnt, kk, out, near[u]); break;
-              case 8: knn_group_avx512<8>(p0, cnt, kk, out, near[u]); break;
-              case 12: knn_group_avx512<12>(p0, cnt, kk, out, near[u]); break;
-              default: knn_group_avx512<16>(p0, cnt, kk, out, near[u]); break;
+              case 4: knn_group_avx512<4>(p0, cnt, kk, out, seen); break;
+              case 8: knn_group_avx512<8>(p0, cnt, kk, out, seen); break;
+              case 12: knn_group_avx512<12>(p0, cnt, kk, out, seen); break;
+              default: knn_group_avx512<16>(p0, cnt, kk, out, seen); break;
             }
 #endif
           } else {
 #if defined(__AVX2__)
             switch (kl) {
-              case 4: knn_group_avx2<4>(p0, cnt, kk, out, near[u]); break;
-              case 8: knn_group_avx2<8>(p0, cnt, kk, out, near[u]); break;
-              case 12: knn_group_avx2<12>(p0, cnt, kk, out, near[u]); break;
-              default: knn_group_avx2<16>(p0, cnt, kk, out, near[u]); break;
+              case 4: knn_group_avx2<4>(p0, cnt, kk, out, seen); break;
+              case 8: knn_group_avx2<8>(p0, cnt, kk, out, seen); break;
+              case 12: knn_group_avx2<12>(p0, cnt, kk, out, seen); break;
+              default: knn_group_avx2<16>(p0, cnt, kk, out, seen); break;
             }
 #endif
           }
           for (auto s = p0; s < p0 + cnt; ++s) core_[s] = std::sqrt(r2[s]);
+          if (!seeds_) {
+            scratch.clear();
+            continue;
+          }
           std::sort(near[u].begin(), near[u].end());  // leaf ids in preorder = tree order
         }
         return;
@@ -1257,6 +1265,7 @@ class BoruvkaKdTree {
         std::sort(seen.begin(), seen.end());  // leaf ids in preorder = tree order
       }
     });
+    if (!seeds_) return;
     for (std::size_t k = nodes_.size(); k-- > 0;) {
       auto& nd = nodes_[k];
       if (nd.left < 0) {
@@ -1535,6 +1544,7 @@ class BoruvkaKdTree {
   std::size_t n_, dim_;
   int threads_;
   KnnLanes lanes_;
+  bool seeds_ = true;  // knn_and_seeds also seeds the candidate edges
   std::vector<std::uint32_t> perm_;  // tree position -> point id
   std::vector<double> pts_;          // coordinates in tree order
   std::vector<double> core_;         // core distances in tree order
@@ -1564,6 +1574,14 @@ inline std::vector<MstEdge> boruvka_kdtree(const double* data, std::size_t n, st
   BoruvkaKdTree t(data, n, dim, k, num_threads, lanes);
   core = t.core_distances();
   return t.run();
+}
+
+// Core distances (k-th nearest other point, 1 <= k < n) only, by BoruvkaKdTree's search.
+inline std::vector<double> boruvka_core_distances(const double* data, std::size_t n,
+                                                  std::size_t dim, std::size_t k, int num_threads,
+                                                  KnnLanes lanes = KnnLanes::kAuto) {
+  if (n < 2) return std::vector<double>(n, 0.0);
+  return BoruvkaKdTree(data, n, dim, k, num_threads, lanes, false).core_distances();
 }
 
 }  // namespace ds3d::detail
