@@ -1179,6 +1179,137 @@ class BoruvkaKdTree {
 #endif
 #endif
 
+  // Pass 2 of knn_and_seeds for a group of up to kW tree positions p0 .. p0 + cnt - 1, one per
+  // lane (kW = 8: AVX-512F, 4: AVX2): seed_query for all of them at once over their group's
+  // scanned leaves `near` (tree order). Every candidate t of a leaf is tested in all lanes: in
+  // the core ball (d² <= r², computed as in seed_query), t != s, and max{core(s), core(t)}
+  // strictly below the lane's best. Candidates come in increasing tree position, so strict
+  // improvement gives the lightest edge with the smallest position, seed_query's rule. A leaf is
+  // skipped when no lane can improve (its box beyond r², or max{core(s), min core} >= best).
+#if defined(__AVX2__)
+  void seed_group_avx2(std::uint32_t p0, std::uint32_t cnt, const std::vector<std::uint32_t>& near,
+                       const double* r2) {
+    alignas(32) double qc[3][4], rs[4], cs[4], sp[4];
+    for (std::uint32_t l = 0; l < 4; ++l) {
+      const std::uint32_t s = p0 + std::min(l, cnt - 1);
+      for (int j = 0; j < 3; ++j) qc[j][l] = pts_[static_cast<std::size_t>(s) * 3 + j];
+      rs[l] = r2[s - p0];
+      cs[l] = core_[s];
+      sp[l] = static_cast<double>(s);
+    }
+    const __m256d qx = _mm256_load_pd(qc[0]), qy = _mm256_load_pd(qc[1]);
+    const __m256d qz = _mm256_load_pd(qc[2]), vrs = _mm256_load_pd(rs);
+    const __m256d vcs = _mm256_load_pd(cs), vs = _mm256_load_pd(sp);
+    const __m256d zero = _mm256_setzero_pd();
+    __m256d bw = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+    __m256d bt = zero;
+    for (const auto leaf : near) {
+      const Node& nd = nodes_[leaf];
+      const double* lo = lo_.data() + static_cast<std::size_t>(leaf) * 3;
+      const double* hi = hi_.data() + static_cast<std::size_t>(leaf) * 3;
+      const __m256d gx = _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo), qx),
+                                                     _mm256_sub_pd(qx, _mm256_broadcast_sd(hi))),
+                                       zero);
+      const __m256d gy =
+          _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 1), qy),
+                                      _mm256_sub_pd(qy, _mm256_broadcast_sd(hi + 1))),
+                        zero);
+      const __m256d gz =
+          _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 2), qz),
+                                      _mm256_sub_pd(qz, _mm256_broadcast_sd(hi + 2))),
+                        zero);
+      __m256d b2 = no_contract256(_mm256_mul_pd(gx, gx));
+      b2 = _mm256_add_pd(b2, no_contract256(_mm256_mul_pd(gy, gy)));
+      b2 = _mm256_add_pd(b2, no_contract256(_mm256_mul_pd(gz, gz)));
+      const __m256d lb = _mm256_max_pd(vcs, _mm256_set1_pd(nd.min_core));
+      const __m256d can = _mm256_and_pd(_mm256_cmp_pd(b2, vrs, _CMP_LE_OQ),
+                                        _mm256_cmp_pd(lb, bw, _CMP_LT_OQ));
+      if (_mm256_movemask_pd(can) == 0) continue;
+      const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
+      for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
+        const __m256d dx = _mm256_sub_pd(_mm256_broadcast_sd(p), qx);
+        const __m256d dy = _mm256_sub_pd(_mm256_broadcast_sd(p + 1), qy);
+        const __m256d dz = _mm256_sub_pd(_mm256_broadcast_sd(p + 2), qz);
+        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+        const __m256d tv = _mm256_set1_pd(static_cast<double>(t));
+        const __m256d w = _mm256_max_pd(vcs, _mm256_set1_pd(core_[t]));
+        const __m256d take = _mm256_and_pd(
+            _mm256_and_pd(_mm256_cmp_pd(d2, vrs, _CMP_LE_OQ), _mm256_cmp_pd(w, bw, _CMP_LT_OQ)),
+            _mm256_cmp_pd(tv, vs, _CMP_NEQ_OQ));
+        bw = _mm256_blendv_pd(bw, w, take);
+        bt = _mm256_blendv_pd(bt, tv, take);
+      }
+    }
+    alignas(32) double ow[4], ot[4];
+    _mm256_store_pd(ow, bw);
+    _mm256_store_pd(ot, bt);
+    for (std::uint32_t l = 0; l < cnt; ++l) {
+      cand_w_[p0 + l] = ow[l];
+      cand_t_[p0 + l] = static_cast<std::uint32_t>(ot[l]);
+    }
+  }
+#endif
+
+#if defined(DS3D_HDBSCAN_AVX512)
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+  __attribute__((target("avx512f"))) void seed_group_avx512(std::uint32_t p0, std::uint32_t cnt,
+                                                            const std::vector<std::uint32_t>& near,
+                                                            const double* r2) {
+    alignas(64) double qc[3][8], rs[8], cs[8], sp[8];
+    for (std::uint32_t l = 0; l < 8; ++l) {
+      const std::uint32_t s = p0 + std::min(l, cnt - 1);
+      for (int j = 0; j < 3; ++j) qc[j][l] = pts_[static_cast<std::size_t>(s) * 3 + j];
+      rs[l] = r2[s - p0];
+      cs[l] = core_[s];
+      sp[l] = static_cast<double>(s);
+    }
+    const __m512d qx = _mm512_load_pd(qc[0]), qy = _mm512_load_pd(qc[1]);
+    const __m512d qz = _mm512_load_pd(qc[2]), vrs = _mm512_load_pd(rs);
+    const __m512d vcs = _mm512_load_pd(cs), vs = _mm512_load_pd(sp);
+    __m512d bw = _mm512_set1_pd(std::numeric_limits<double>::infinity());
+    __m512d bt = _mm512_setzero_pd();
+    for (const auto leaf : near) {
+      const Node& nd = nodes_[leaf];
+      const __m512d b2 = box2_avx512(leaf, qx, qy, qz);
+      const __m512d lb = _mm512_max_pd(vcs, _mm512_set1_pd(nd.min_core));
+      const __mmask8 can = _mm512_cmp_pd_mask(b2, vrs, _CMP_LE_OQ) &
+                           _mm512_cmp_pd_mask(lb, bw, _CMP_LT_OQ);
+      if (can == 0) continue;
+      const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
+      for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
+        const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(p[0]), qx);
+        const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(p[1]), qy);
+        const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(p[2]), qz);
+        __m512d d2 = no_contract_v512(_mm512_mul_pd(dx, dx));
+        d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dy, dy)));
+        d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dz, dz)));
+        const __m512d tv = _mm512_set1_pd(static_cast<double>(t));
+        const __m512d w = _mm512_max_pd(vcs, _mm512_set1_pd(core_[t]));
+        const __mmask8 take = _mm512_cmp_pd_mask(d2, vrs, _CMP_LE_OQ) &
+                              _mm512_cmp_pd_mask(w, bw, _CMP_LT_OQ) &
+                              _mm512_cmp_pd_mask(tv, vs, _CMP_NEQ_OQ);
+        bw = _mm512_mask_blend_pd(take, bw, w);
+        bt = _mm512_mask_blend_pd(take, bt, tv);
+      }
+    }
+    alignas(64) double ow[8], ot[8];
+    _mm512_store_pd(ow, bw);
+    _mm512_store_pd(ot, bt);
+    for (std::uint32_t l = 0; l < cnt; ++l) {
+      cand_w_[p0 + l] = ow[l];
+      cand_t_[p0 + l] = static_cast<std::uint32_t>(ot[l]);
+    }
+  }
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif
+
   // Core distances and first candidate edges, both exact.
   // 1. core(s) = sqrt of the kk-th smallest squared distance from s, itself included (the
   //    distance to its k-th nearest other point), by walk_from_leaf, skipping boxes at or
@@ -1279,7 +1410,20 @@ class BoruvkaKdTree {
     }
     parallel_chunks(units, chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
       for (std::size_t u = b; u < e; ++u) {
-        for (auto s = unit_begin[u]; s < unit_begin[u + 1]; ++s) {
+        const auto p0 = unit_begin[u];
+#if defined(DS3D_HDBSCAN_AVX512)
+        if (width == 8) {
+          seed_group_avx512(p0, unit_begin[u + 1] - p0, near[u], r2.data() + p0);
+          continue;
+        }
+#endif
+#if defined(__AVX2__)
+        if (width == 4) {
+          seed_group_avx2(p0, unit_begin[u + 1] - p0, near[u], r2.data() + p0);
+          continue;
+        }
+#endif
+        for (auto s = p0; s < unit_begin[u + 1]; ++s) {
           double best_w = inf;
           std::uint32_t best_t = 0;
           seed_query(s, near[u].data(), near[u].size(), r2[s], best_w, best_t);
