@@ -696,7 +696,9 @@ class BoruvkaKdTree {
     nodes_.reserve(2 * (n_ / kLeafSize + 1));
     std::vector<std::uint32_t> order(n_);
     std::iota(order.begin(), order.end(), 0U);
+    keyed_.resize(n_);
     build_node(data, order, 0, static_cast<std::uint32_t>(n_));
+    keyed_ = {};
     stride_ = n_ + kLeafSize;  // zero padding: a block read of kLeafSize lanes never overruns
     soa_.assign(stride_ * dim_, 0.0);
     for (std::size_t i = 0; i < n_; ++i) {
@@ -1464,10 +1466,16 @@ class BoruvkaKdTree {
     }
     if (!(hi[split] > lo[split])) return id;  // all points identical: keep as one leaf
     const auto mid = b + (e - b) / 2;
-    std::nth_element(order.begin() + b, order.begin() + mid, order.begin() + e,
-                     [&](std::uint32_t x, std::uint32_t y) {
-                       return data[x * dim_ + split] < data[y * dim_ + split];
-                     });
+    // nth_element on (split coordinate, id) pairs compared by the coordinate: the same
+    // comparisons in the same order as on the ids with an indirect comparator, so the same
+    // permutation (the tree, and with it every tie rule, is unchanged), without a dependent
+    // load in each comparison.
+    auto* kv = keyed_.data();
+    for (auto i = b; i < e; ++i) kv[i - b] = {data[order[i] * dim_ + split], order[i]};
+    std::nth_element(kv, kv + (mid - b), kv + (e - b),
+                     [](const std::pair<double, std::uint32_t>& x,
+                        const std::pair<double, std::uint32_t>& y) { return x.first < y.first; });
+    for (auto i = b; i < e; ++i) order[i] = kv[i - b].second;
     const auto l = build_node(data, order, b, mid);
     const auto r = build_node(data, order, mid, e);
     nodes_[static_cast<std::size_t>(id)].left = l;
@@ -1694,6 +1702,7 @@ class BoruvkaKdTree {
   std::vector<double> core_;         // core distances in tree order
   std::vector<Node> nodes_;
   std::vector<double> lo_, hi_;
+  std::vector<std::pair<double, std::uint32_t>> keyed_;  // build scratch: (coordinate, id)
   std::vector<double> soa_;            // coordinates per dimension: soa_[j * stride_ + position]
   std::size_t stride_ = 0;             // n_ + kLeafSize (zero padding)
   std::vector<std::uint32_t> leaves_;  // leaf node ids in tree order
