@@ -680,6 +680,7 @@ class BoruvkaKdTree {
   };
   static constexpr std::uint32_t kMixed = 0xFFFFFFFFU;
   static constexpr std::uint32_t kLeafSize = 16;
+  static constexpr std::uint32_t kKeyedMax = 65536;  // largest node built on keyed_
 
   std::uint32_t find(std::uint32_t x) {
     std::uint32_t r = x;
@@ -696,7 +697,7 @@ class BoruvkaKdTree {
     nodes_.reserve(2 * (n_ / kLeafSize + 1));
     std::vector<std::uint32_t> order(n_);
     std::iota(order.begin(), order.end(), 0U);
-    keyed_.resize(n_);
+    keyed_.resize(std::min<std::size_t>(n_, kKeyedMax));
     build_node(data, order, 0, static_cast<std::uint32_t>(n_));
     keyed_ = {};
     stride_ = n_ + kLeafSize;  // zero padding: a block read of kLeafSize lanes never overruns
@@ -1470,12 +1471,22 @@ class BoruvkaKdTree {
     // comparisons in the same order as on the ids with an indirect comparator, so the same
     // permutation (the tree, and with it every tie rule, is unchanged), without a dependent
     // load in each comparison.
-    auto* kv = keyed_.data();
-    for (auto i = b; i < e; ++i) kv[i - b] = {data[order[i] * dim_ + split], order[i]};
-    std::nth_element(kv, kv + (mid - b), kv + (e - b),
-                     [](const std::pair<double, std::uint32_t>& x,
-                        const std::pair<double, std::uint32_t>& y) { return x.first < y.first; });
-    for (auto i = b; i < e; ++i) order[i] = kv[i - b].second;
+    // Nodes above kKeyedMax points (only for n > kKeyedMax) keep the indirect comparator, so
+    // the scratch stays at most 1 MiB.
+    if (e - b <= kKeyedMax) {
+      auto* kv = keyed_.data();
+      for (auto i = b; i < e; ++i) kv[i - b] = {data[order[i] * dim_ + split], order[i]};
+      std::nth_element(
+          kv, kv + (mid - b), kv + (e - b),
+          [](const std::pair<double, std::uint32_t>& x,
+             const std::pair<double, std::uint32_t>& y) { return x.first < y.first; });
+      for (auto i = b; i < e; ++i) order[i] = kv[i - b].second;
+    } else {
+      std::nth_element(order.begin() + b, order.begin() + mid, order.begin() + e,
+                       [&](std::uint32_t x, std::uint32_t y) {
+                         return data[x * dim_ + split] < data[y * dim_ + split];
+                       });
+    }
     const auto l = build_node(data, order, b, mid);
     const auto r = build_node(data, order, mid, e);
     nodes_[static_cast<std::size_t>(id)].left = l;
