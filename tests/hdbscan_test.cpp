@@ -455,8 +455,9 @@ TEST(Hdbscan, SameResultForAnyThreadCount) {
 
 TEST(Hdbscan, SmallKnnTreeMatchesBruteForceForAnyThreadCount) {
   // Prim's core distances come from KnnTreeSmall's leaf-batched search (n <=
-  // detail::kSmallKnnMaxPoints), Borůvka's from the search over its own tree (any n). Check both
-  // bitwise against a brute-force (k+1)-th smallest distance, in 2, 3 and 5 dimensions.
+  // detail::kSmallKnnMaxPoints; in 3-D only without AVX2 or for k + 1 > 16), Borůvka's (and 3-D
+  // Prim's) from the search over Borůvka's tree (any n). Check both bitwise against a
+  // brute-force (k+1)-th smallest distance, in 2, 3 and 5 dimensions.
   for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
     for (const int dim : {2, 3, 5}) {
       RowMatrixXd x(900, dim);  // clumped integer-grid points: many exact distance ties
@@ -491,11 +492,12 @@ TEST(Hdbscan, SmallKnnTreeMatchesBruteForceForAnyThreadCount) {
 }
 
 TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
-  // Both 3-D core-distance searches (Prim's KnnTreeSmall, Borůvka's own tree) keep their
-  // (k+1)-list in 4-lane registers for k + 1 <= 16 (one to four registers, padded slots) and in
-  // memory above; check every register count, the padding and the fallback bitwise against
-  // brute force on tie-heavy integer-grid data.
-  RowMatrixXd x(700, 3);
+  // The 3-D core-distance searches keep their (k+1)-lists in registers for k + 1 <= 16 (one to
+  // four per lane group, padded slots) and in memory above (KnnTreeSmall, per-query walks);
+  // check every register count, the padding and the fallback bitwise against
+  // brute force on tie-heavy integer-grid data. Borůvka's search runs four queries at a time
+  // (one per lane); 703 points leave the last group partial. Both MSTs must weigh the same.
+  RowMatrixXd x(703, 3);
   std::uint64_t state = 5;
   for (Eigen::Index i = 0; i < x.rows(); ++i) {
     for (Eigen::Index j = 0; j < 3; ++j) {
@@ -510,8 +512,9 @@ TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
       rows[i][t] = ds3d::detail::sq_dist_seq(x.data() + i * 3, x.data() + t * 3, 3);
     }
   }
-  for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
-    for (const int k : {1, 3, 4, 5, 8, 10, 11, 12, 15, 16, 21}) {
+  for (const int k : {1, 3, 4, 5, 8, 10, 11, 12, 15, 16, 21}) {
+    std::vector<std::vector<double>> weights;
+    for (const auto algorithm : {MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
       HdbscanParams p;
       p.min_cluster_size = 5;
       p.min_samples = k;
@@ -522,6 +525,63 @@ TEST(Hdbscan, SmallKnnCoreDistancesMatchBruteForceForEveryListLength) {
         std::nth_element(row.begin(), row.begin() + k, row.end());
         ASSERT_EQ(a.core_distances[i], std::sqrt(row[static_cast<std::size_t>(k)]))
             << to_string(algorithm) << " k " << k << " point " << i;
+      }
+      weights.emplace_back();
+      for (const auto& e : a.min_spanning_tree) weights.back().push_back(e.weight);
+      std::sort(weights.back().begin(), weights.back().end());
+    }
+    EXPECT_EQ(weights[0], weights[1]) << "k " << k;
+  }
+}
+
+TEST(Hdbscan, BoruvkaKnnLaneModesMatchBruteForceBitwise) {
+  // BoruvkaKdTree finds 3-D core distances (for Borůvka, and alone for Prim) with 8 queries per
+  // tree walk (AVX-512F lanes), 4 (AVX2) or one walk per query; the walks pick the seeds from the
+  // leaves they scanned. Every mode must give brute-force core distances and the same MST, edge
+  // for edge, on tie-heavy data, for every list-register count (k + 1 = 2..16) and beyond (the
+  // per-query fallback), with a partial last group, for 1 and 3 threads. Modes the build or CPU
+  // cannot run fall back to the automatic choice.
+  using ds3d::detail::KnnLanes;
+  for (const Eigen::Index n : {61, 1003}) {
+    RowMatrixXd x(n, 3);
+    std::uint64_t state = 17;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      for (Eigen::Index j = 0; j < 3; ++j) {
+        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+        x(i, j) = static_cast<double>((state >> 33) % 30) + 50.0 * static_cast<double>(i % 5);
+      }
+    }
+    const auto un = static_cast<std::size_t>(n);
+    for (const std::size_t k : {1U, 3U, 7U, 10U, 11U, 15U, 20U}) {
+      std::vector<double> expect(un);
+      std::vector<double> row(un);
+      for (std::size_t i = 0; i < un; ++i) {
+        for (std::size_t t = 0; t < un; ++t) {
+          row[t] = ds3d::detail::sq_dist_seq(x.data() + i * 3, x.data() + t * 3, 3);
+        }
+        std::nth_element(row.begin(), row.begin() + static_cast<std::ptrdiff_t>(k), row.end());
+        expect[i] = std::sqrt(row[k]);
+      }
+      // KnnTreeSmall, which 3-D Prim no longer uses where the lane search runs.
+      EXPECT_EQ(ds3d::detail::knn_core_distances({x.data(), un, 3}, k, 1), expect) << "k " << k;
+      std::vector<ds3d::MstEdge> first;
+      for (const auto mode : {KnnLanes::kPerQuery, KnnLanes::kAvx2, KnnLanes::kAvx512}) {
+        // The core-distance-only search that 3-D Prim uses.
+        ASSERT_EQ(ds3d::detail::boruvka_core_distances(x.data(), un, 3, k, 2, mode), expect)
+            << "n " << n << " k " << k << " mode " << int(mode);
+        for (const int threads : {1, 3}) {
+          std::vector<double> core;
+          const auto mst =
+              ds3d::detail::boruvka_kdtree(x.data(), un, 3, k, threads, core, mode);
+          ASSERT_EQ(core, expect) << "n " << n << " k " << k << " mode " << int(mode);
+          ASSERT_EQ(mst.size(), un - 1);
+          if (first.empty()) first = mst;
+          for (std::size_t e = 0; e < mst.size(); ++e) {
+            ASSERT_EQ(mst[e].from, first[e].from) << "n " << n << " k " << k << " edge " << e;
+            ASSERT_EQ(mst[e].to, first[e].to) << "n " << n << " k " << k << " edge " << e;
+            ASSERT_EQ(mst[e].weight, first[e].weight) << "n " << n << " k " << k << " edge " << e;
+          }
+        }
       }
     }
   }

@@ -458,7 +458,12 @@ inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const Hdbscan
     mst = detail::boruvka_kdtree(data.data(), n, dim, static_cast<std::size_t>(k), threads,
                                  res.core_distances);
   } else {
-    res.core_distances = detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads);
+    const auto kk = static_cast<std::size_t>(k) + 1;
+    res.core_distances =
+        detail::knn_lane_width(dim, kk, detail::KnnLanes::kAuto) > 0
+            ? detail::boruvka_core_distances(data.data(), n, dim, static_cast<std::size_t>(k),
+                                             threads)
+            : detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads);
     mst = detail::prim_dense(data.data(), n, dim, res.core_distances);
   }
   detail::hdbscan_from_mst(res, std::move(mst), params, n);

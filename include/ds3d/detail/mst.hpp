@@ -35,6 +35,12 @@ namespace ds3d::detail {
 // prim_step_available) falls back to kAuto's choice.
 enum class PrimStep : std::uint8_t { kAuto, kGeneric, kSse2, kAvx2, kAvx512 };
 
+// How BoruvkaKdTree finds the core distances (D = 3, k + 1 <= 16): several queries per tree
+// walk, one per SIMD lane (kAvx2: 4, kAvx512: 8), or one walk per query (kPerQuery, also used for
+// other D and k). kAuto picks the widest the build and the CPU run; a forced mode that cannot run
+// falls back to kAuto's choice. All give bitwise the same results (tests run each).
+enum class KnnLanes : std::uint8_t { kAuto, kPerQuery, kAvx2, kAvx512 };
+
 // prim_dense keeps its slot count a multiple of this (the widest step's lane count).
 inline constexpr std::size_t kPrimPad = 8;
 
@@ -341,6 +347,23 @@ inline bool cpu_has_avx2() {
 }
 #endif
 
+// Queries per BoruvkaKdTree core-distance walk (SIMD lanes) for dimension dim, list length kk =
+// k + 1 and mode `lanes`: 8 (AVX-512F), 4 (AVX2) or 0 (one walk per query).
+inline std::size_t knn_lane_width(std::size_t dim, std::size_t kk, KnnLanes lanes) {
+  if (dim != 3 || kk > 16 || lanes == KnnLanes::kPerQuery) return 0;
+  bool avx2 = false;
+  bool avx512 = false;
+#if defined(__AVX2__)
+  avx2 = true;
+#endif
+#if defined(DS3D_HDBSCAN_AVX512)
+  avx512 = cpu_has_avx512();
+#endif
+  if (lanes == KnnLanes::kAvx2 && avx2) return 4;
+  if (avx512) return 8;
+  return avx2 ? 4 : 0;
+}
+
 inline bool prim_step_available(PrimStep step, std::size_t dim) {
   switch (step) {
     case PrimStep::kGeneric:
@@ -543,8 +566,11 @@ class BoruvkaKdTree {
  public:
   /// Builds the tree over `data` (n × dim, row-major), computes every point's core distance
   /// (distance to its k-th nearest other point, 1 <= k < n) and seeds the candidate edges.
-  BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, std::size_t k, int num_threads)
-      : n_(n), dim_(dim), threads_(num_threads) {
+  /// With seeds = false only the core distances are computed (no candidate edges: run() must
+  /// not be called).
+  BoruvkaKdTree(const double* data, std::size_t n, std::size_t dim, std::size_t k, int num_threads,
+                KnnLanes lanes = KnnLanes::kAuto, bool seeds = true)
+      : n_(n), dim_(dim), threads_(num_threads), lanes_(lanes), seeds_(seeds) {
     perm_.resize(n);
     std::iota(perm_.begin(), perm_.end(), 0U);
     pts_.resize(n * dim);
@@ -654,6 +680,7 @@ class BoruvkaKdTree {
   };
   static constexpr std::uint32_t kMixed = 0xFFFFFFFFU;
   static constexpr std::uint32_t kLeafSize = 16;
+  static constexpr std::uint32_t kKeyedMax = 65536;  // largest node built on keyed_
 
   std::uint32_t find(std::uint32_t x) {
     std::uint32_t r = x;
@@ -670,7 +697,9 @@ class BoruvkaKdTree {
     nodes_.reserve(2 * (n_ / kLeafSize + 1));
     std::vector<std::uint32_t> order(n_);
     std::iota(order.begin(), order.end(), 0U);
+    keyed_.resize(std::min<std::size_t>(n_, kKeyedMax));
     build_node(data, order, 0, static_cast<std::uint32_t>(n_));
+    keyed_ = {};
     stride_ = n_ + kLeafSize;  // zero padding: a block read of kLeafSize lanes never overruns
     soa_.assign(stride_ * dim_, 0.0);
     for (std::size_t i = 0; i < n_; ++i) {
@@ -879,6 +908,25 @@ class BoruvkaKdTree {
     }
   }
 
+  // Smallest node holding tree positions p0 .. p0 + cnt - 1: descends from the root while one
+  // child holds them all.
+  [[nodiscard]] std::uint32_t group_start(std::uint32_t p0, std::uint32_t cnt) const {
+    std::uint32_t start = 0;
+    for (;;) {
+      const Node& nd = nodes_[start];
+      if (nd.left < 0) return start;
+      const auto l = static_cast<std::uint32_t>(nd.left);
+      const auto r = static_cast<std::uint32_t>(nd.right);
+      if (p0 + cnt <= nodes_[l].end) {
+        start = l;
+      } else if (p0 >= nodes_[r].begin) {
+        start = r;
+      } else {
+        return start;
+      }
+    }
+  }
+
 #if defined(__AVX2__)
   // knn_scan with the list held in kB 4-lane registers (4·kB >= kk slots, ascending; bd must
   // have 4·kB slots). The merge runs on whole registers: bd[i-1] is the list shifted up one lane
@@ -914,6 +962,355 @@ class BoruvkaKdTree {
     }
     for (int j = 0; j < kB; ++j) _mm256_storeu_pd(bd + 4 * j, v[j]);
   }
+
+  // Pass 1 of knn_and_seeds for four queries at once, one per AVX2 lane: the tree positions
+  // p0 .. p0 + cnt - 1 (cnt in 1..4; missing lanes repeat the last query). Each lane keeps its
+  // list of the kk smallest squared distances in kL registers, slot i of every lane in v[i],
+  // ascending, the first kL - kk slots held at -inf so that v[kL - 1] is the kk-th smallest.
+  // Every point of a scanned leaf is merged into all four lists, branch-free, by
+  // v[i] = min(v[i], max(v[i-1], d)) (no per-hit bit extraction or serial dependency between
+  // the queries). The walk starts at the smallest node holding the four positions (its whole
+  // subtree: their own points), then visits each ancestor's other subtree, nearest child first;
+  // a node is skipped when its box is beyond the current kk-th value in every lane (box² > v,
+  // so the scanned leaves cover every lane's core ball, boundary ties included). Per lane the
+  // distances and box gaps are those of sq_dist_seq and box_dist2 (same operations, same
+  // order), so each lane's kk-th value is bitwise brute force. The scanned leaves are appended
+  // to `seen`; out_r2[l] receives lane l's kk-th smallest squared distance.
+  template <int kL>
+  void knn_group_avx2(std::uint32_t p0, std::uint32_t cnt, std::size_t kk, double* out_r2,
+                      std::vector<std::uint32_t>& seen) const {
+    const double inf = std::numeric_limits<double>::infinity();
+    alignas(32) double qc[3][4];
+    for (std::uint32_t l = 0; l < 4; ++l) {
+      const double* p = pts_.data() + static_cast<std::size_t>(p0 + std::min(l, cnt - 1)) * 3;
+      for (int j = 0; j < 3; ++j) qc[j][l] = p[j];
+    }
+    const __m256d qx = _mm256_load_pd(qc[0]);
+    const __m256d qy = _mm256_load_pd(qc[1]);
+    const __m256d qz = _mm256_load_pd(qc[2]);
+    __m256d v[kL];
+    for (int i = 0; i < kL; ++i) {
+      v[i] = _mm256_set1_pd(static_cast<std::size_t>(i) < kL - kk ? -inf : inf);
+    }
+    const __m256d zero = _mm256_setzero_pd();
+    auto box2 = [&](std::size_t k) {
+      const double* lo = lo_.data() + k * 3;
+      const double* hi = hi_.data() + k * 3;
+      const __m256d gx = _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo), qx),
+                                                     _mm256_sub_pd(qx, _mm256_broadcast_sd(hi))),
+                                       zero);
+      const __m256d gy =
+          _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 1), qy),
+                                      _mm256_sub_pd(qy, _mm256_broadcast_sd(hi + 1))),
+                        zero);
+      const __m256d gz =
+          _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 2), qz),
+                                      _mm256_sub_pd(qz, _mm256_broadcast_sd(hi + 2))),
+                        zero);
+      __m256d s = no_contract256(_mm256_mul_pd(gx, gx));
+      s = _mm256_add_pd(s, no_contract256(_mm256_mul_pd(gy, gy)));
+      return _mm256_add_pd(s, no_contract256(_mm256_mul_pd(gz, gz)));
+    };
+    auto keep = [&](__m256d b2) {
+      return _mm256_movemask_pd(_mm256_cmp_pd(b2, v[kL - 1], _CMP_LE_OQ)) != 0;
+    };
+    auto scan = [&](const Node& nd) {
+      seen.push_back(static_cast<std::uint32_t>(&nd - nodes_.data()));
+      const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
+      for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
+        const __m256d dx = _mm256_sub_pd(_mm256_broadcast_sd(p), qx);
+        const __m256d dy = _mm256_sub_pd(_mm256_broadcast_sd(p + 1), qy);
+        const __m256d dz = _mm256_sub_pd(_mm256_broadcast_sd(p + 2), qz);
+        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+#pragma GCC unroll 16
+        for (int i = kL - 1; i > 0; --i) v[i] = _mm256_min_pd(v[i], _mm256_max_pd(v[i - 1], d2));
+        v[0] = _mm256_min_pd(v[0], d2);
+      }
+    };
+    struct alignas(32) Entry {
+      __m256d box2;
+      std::uint32_t node;
+    };
+    Entry stack[128];
+    auto subtree = [&](std::uint32_t root, __m256d root_box2) {
+      int top = 0;
+      stack[top++] = {root_box2, root};
+      while (top > 0) {
+        const Entry en = stack[--top];
+        if (!keep(en.box2)) continue;
+        const Node& nd = nodes_[en.node];
+        if (nd.left < 0) {
+          scan(nd);
+          continue;
+        }
+        const auto l = static_cast<std::uint32_t>(nd.left);
+        const auto r = static_cast<std::uint32_t>(nd.right);
+        const Entry el{box2(l), l};
+        const Entry er{box2(r), r};
+        // Nearer child (by lane 0) on top.
+        if (_mm256_cvtsd_f64(el.box2) <= _mm256_cvtsd_f64(er.box2)) {
+          if (keep(er.box2)) stack[top++] = er;
+          if (keep(el.box2)) stack[top++] = el;
+        } else {
+          if (keep(el.box2)) stack[top++] = el;
+          if (keep(er.box2)) stack[top++] = er;
+        }
+      }
+    };
+    const std::uint32_t start = group_start(p0, cnt);
+    subtree(start, zero);
+    for (std::uint32_t c = start; nodes_[c].parent >= 0;) {
+      const auto p = static_cast<std::uint32_t>(nodes_[c].parent);
+      const Node& pn = nodes_[p];
+      const auto sib =
+          static_cast<std::uint32_t>(pn.left == static_cast<std::int32_t>(c) ? pn.right : pn.left);
+      c = p;
+      subtree(sib, box2(sib));
+    }
+    alignas(32) double r[4];
+    _mm256_store_pd(r, v[kL - 1]);
+    for (std::uint32_t l = 0; l < cnt; ++l) out_r2[l] = r[l];
+  }
+#endif
+
+#if defined(DS3D_HDBSCAN_AVX512)
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+  // knn_group_avx2 with eight queries, one per AVX-512 lane (the list in kL of the 32 zmm
+  // registers). Run-time dispatch; written without lambdas, which would not inherit the target.
+  [[nodiscard]] __attribute__((target("avx512f"))) __m512d box2_avx512(std::size_t k, __m512d qx,
+                                                                      __m512d qy,
+                                                                      __m512d qz) const {
+    const double* lo = lo_.data() + k * 3;
+    const double* hi = hi_.data() + k * 3;
+    const __m512d zero = _mm512_setzero_pd();
+    const __m512d gx = _mm512_max_pd(_mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(lo[0]), qx),
+                                                   _mm512_sub_pd(qx, _mm512_set1_pd(hi[0]))),
+                                     zero);
+    const __m512d gy = _mm512_max_pd(_mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(lo[1]), qy),
+                                                   _mm512_sub_pd(qy, _mm512_set1_pd(hi[1]))),
+                                     zero);
+    const __m512d gz = _mm512_max_pd(_mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(lo[2]), qz),
+                                                   _mm512_sub_pd(qz, _mm512_set1_pd(hi[2]))),
+                                     zero);
+    __m512d s = no_contract_v512(_mm512_mul_pd(gx, gx));
+    s = _mm512_add_pd(s, no_contract_v512(_mm512_mul_pd(gy, gy)));
+    return _mm512_add_pd(s, no_contract_v512(_mm512_mul_pd(gz, gz)));
+  }
+
+  template <int kL>
+  __attribute__((target("avx512f"))) void knn_group_avx512(std::uint32_t p0, std::uint32_t cnt,
+                                                           std::size_t kk, double* out_r2,
+                                                           std::vector<std::uint32_t>& seen) const {
+    const double inf = std::numeric_limits<double>::infinity();
+    alignas(64) double qc[3][8];
+    for (std::uint32_t l = 0; l < 8; ++l) {
+      const double* p = pts_.data() + static_cast<std::size_t>(p0 + std::min(l, cnt - 1)) * 3;
+      for (int j = 0; j < 3; ++j) qc[j][l] = p[j];
+    }
+    const __m512d qx = _mm512_load_pd(qc[0]);
+    const __m512d qy = _mm512_load_pd(qc[1]);
+    const __m512d qz = _mm512_load_pd(qc[2]);
+    __m512d v[kL];
+    for (int i = 0; i < kL; ++i) {
+      v[i] = _mm512_set1_pd(static_cast<std::size_t>(i) < kL - kk ? -inf : inf);
+    }
+    struct alignas(64) Entry {
+      __m512d box2;
+      std::uint32_t node;
+    };
+    Entry stack[128];
+    const std::uint32_t start = group_start(p0, cnt);
+    // The start node's subtree, then each ancestor's other child's subtree.
+    for (std::uint32_t c = start, root = start;;) {
+      int top = 0;
+      stack[top++] = {root == start ? _mm512_setzero_pd() : box2_avx512(root, qx, qy, qz), root};
+      while (top > 0) {
+        const Entry en = stack[--top];
+        if (_mm512_cmp_pd_mask(en.box2, v[kL - 1], _CMP_LE_OQ) == 0) continue;
+        const Node& nd = nodes_[en.node];
+        if (nd.left < 0) {
+          seen.push_back(en.node);
+          const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
+          for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
+            const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(p[0]), qx);
+            const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(p[1]), qy);
+            const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(p[2]), qz);
+            __m512d d2 = no_contract_v512(_mm512_mul_pd(dx, dx));
+            d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dy, dy)));
+            d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dz, dz)));
+#pragma GCC unroll 16
+            for (int i = kL - 1; i > 0; --i) {
+              v[i] = _mm512_min_pd(v[i], _mm512_max_pd(v[i - 1], d2));
+            }
+            v[0] = _mm512_min_pd(v[0], d2);
+          }
+          continue;
+        }
+        const auto l = static_cast<std::uint32_t>(nd.left);
+        const auto r = static_cast<std::uint32_t>(nd.right);
+        const Entry el{box2_avx512(l, qx, qy, qz), l};
+        const Entry er{box2_avx512(r, qx, qy, qz), r};
+        const bool keep_l = _mm512_cmp_pd_mask(el.box2, v[kL - 1], _CMP_LE_OQ) != 0;
+        const bool keep_r = _mm512_cmp_pd_mask(er.box2, v[kL - 1], _CMP_LE_OQ) != 0;
+        // Nearer child (by lane 0) on top.
+        if (_mm512_cvtsd_f64(el.box2) <= _mm512_cvtsd_f64(er.box2)) {
+          if (keep_r) stack[top++] = er;
+          if (keep_l) stack[top++] = el;
+        } else {
+          if (keep_l) stack[top++] = el;
+          if (keep_r) stack[top++] = er;
+        }
+      }
+      if (nodes_[c].parent < 0) break;
+      const auto p = static_cast<std::uint32_t>(nodes_[c].parent);
+      const Node& pn = nodes_[p];
+      root =
+          static_cast<std::uint32_t>(pn.left == static_cast<std::int32_t>(c) ? pn.right : pn.left);
+      c = p;
+    }
+    alignas(64) double r[8];
+    _mm512_store_pd(r, v[kL - 1]);
+    for (std::uint32_t l = 0; l < cnt; ++l) out_r2[l] = r[l];
+  }
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif
+
+  // Pass 2 of knn_and_seeds for a group of up to kW tree positions p0 .. p0 + cnt - 1, one per
+  // lane (kW = 8: AVX-512F, 4: AVX2): seed_query for all of them at once over their group's
+  // scanned leaves `near` (tree order). Every candidate t of a leaf is tested in all lanes: in
+  // the core ball (d² <= r², computed as in seed_query), t != s, and max{core(s), core(t)}
+  // strictly below the lane's best. Candidates come in increasing tree position, so strict
+  // improvement gives the lightest edge with the smallest position, seed_query's rule. A leaf is
+  // skipped when no lane can improve (its box beyond r², or max{core(s), min core} >= best).
+#if defined(__AVX2__)
+  void seed_group_avx2(std::uint32_t p0, std::uint32_t cnt, const std::vector<std::uint32_t>& near,
+                       const double* r2) {
+    alignas(32) double qc[3][4], rs[4], cs[4], sp[4];
+    for (std::uint32_t l = 0; l < 4; ++l) {
+      const std::uint32_t s = p0 + std::min(l, cnt - 1);
+      for (int j = 0; j < 3; ++j) qc[j][l] = pts_[static_cast<std::size_t>(s) * 3 + j];
+      rs[l] = r2[s - p0];
+      cs[l] = core_[s];
+      sp[l] = static_cast<double>(s);
+    }
+    const __m256d qx = _mm256_load_pd(qc[0]), qy = _mm256_load_pd(qc[1]);
+    const __m256d qz = _mm256_load_pd(qc[2]), vrs = _mm256_load_pd(rs);
+    const __m256d vcs = _mm256_load_pd(cs), vs = _mm256_load_pd(sp);
+    const __m256d zero = _mm256_setzero_pd();
+    __m256d bw = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+    __m256d bt = zero;
+    for (const auto leaf : near) {
+      const Node& nd = nodes_[leaf];
+      const double* lo = lo_.data() + static_cast<std::size_t>(leaf) * 3;
+      const double* hi = hi_.data() + static_cast<std::size_t>(leaf) * 3;
+      const __m256d gx = _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo), qx),
+                                                     _mm256_sub_pd(qx, _mm256_broadcast_sd(hi))),
+                                       zero);
+      const __m256d gy =
+          _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 1), qy),
+                                      _mm256_sub_pd(qy, _mm256_broadcast_sd(hi + 1))),
+                        zero);
+      const __m256d gz =
+          _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 2), qz),
+                                      _mm256_sub_pd(qz, _mm256_broadcast_sd(hi + 2))),
+                        zero);
+      __m256d b2 = no_contract256(_mm256_mul_pd(gx, gx));
+      b2 = _mm256_add_pd(b2, no_contract256(_mm256_mul_pd(gy, gy)));
+      b2 = _mm256_add_pd(b2, no_contract256(_mm256_mul_pd(gz, gz)));
+      const __m256d lb = _mm256_max_pd(vcs, _mm256_set1_pd(nd.min_core));
+      const __m256d can = _mm256_and_pd(_mm256_cmp_pd(b2, vrs, _CMP_LE_OQ),
+                                        _mm256_cmp_pd(lb, bw, _CMP_LT_OQ));
+      if (_mm256_movemask_pd(can) == 0) continue;
+      const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
+      for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
+        const __m256d dx = _mm256_sub_pd(_mm256_broadcast_sd(p), qx);
+        const __m256d dy = _mm256_sub_pd(_mm256_broadcast_sd(p + 1), qy);
+        const __m256d dz = _mm256_sub_pd(_mm256_broadcast_sd(p + 2), qz);
+        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+        const __m256d tv = _mm256_set1_pd(static_cast<double>(t));
+        const __m256d w = _mm256_max_pd(vcs, _mm256_set1_pd(core_[t]));
+        const __m256d take = _mm256_and_pd(
+            _mm256_and_pd(_mm256_cmp_pd(d2, vrs, _CMP_LE_OQ), _mm256_cmp_pd(w, bw, _CMP_LT_OQ)),
+            _mm256_cmp_pd(tv, vs, _CMP_NEQ_OQ));
+        bw = _mm256_blendv_pd(bw, w, take);
+        bt = _mm256_blendv_pd(bt, tv, take);
+      }
+    }
+    alignas(32) double ow[4], ot[4];
+    _mm256_store_pd(ow, bw);
+    _mm256_store_pd(ot, bt);
+    for (std::uint32_t l = 0; l < cnt; ++l) {
+      cand_w_[p0 + l] = ow[l];
+      cand_t_[p0 + l] = static_cast<std::uint32_t>(ot[l]);
+    }
+  }
+#endif
+
+#if defined(DS3D_HDBSCAN_AVX512)
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+  __attribute__((target("avx512f"))) void seed_group_avx512(std::uint32_t p0, std::uint32_t cnt,
+                                                            const std::vector<std::uint32_t>& near,
+                                                            const double* r2) {
+    alignas(64) double qc[3][8], rs[8], cs[8], sp[8];
+    for (std::uint32_t l = 0; l < 8; ++l) {
+      const std::uint32_t s = p0 + std::min(l, cnt - 1);
+      for (int j = 0; j < 3; ++j) qc[j][l] = pts_[static_cast<std::size_t>(s) * 3 + j];
+      rs[l] = r2[s - p0];
+      cs[l] = core_[s];
+      sp[l] = static_cast<double>(s);
+    }
+    const __m512d qx = _mm512_load_pd(qc[0]), qy = _mm512_load_pd(qc[1]);
+    const __m512d qz = _mm512_load_pd(qc[2]), vrs = _mm512_load_pd(rs);
+    const __m512d vcs = _mm512_load_pd(cs), vs = _mm512_load_pd(sp);
+    __m512d bw = _mm512_set1_pd(std::numeric_limits<double>::infinity());
+    __m512d bt = _mm512_setzero_pd();
+    for (const auto leaf : near) {
+      const Node& nd = nodes_[leaf];
+      const __m512d b2 = box2_avx512(leaf, qx, qy, qz);
+      const __m512d lb = _mm512_max_pd(vcs, _mm512_set1_pd(nd.min_core));
+      const __mmask8 can = _mm512_cmp_pd_mask(b2, vrs, _CMP_LE_OQ) &
+                           _mm512_cmp_pd_mask(lb, bw, _CMP_LT_OQ);
+      if (can == 0) continue;
+      const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
+      for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
+        const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(p[0]), qx);
+        const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(p[1]), qy);
+        const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(p[2]), qz);
+        __m512d d2 = no_contract_v512(_mm512_mul_pd(dx, dx));
+        d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dy, dy)));
+        d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dz, dz)));
+        const __m512d tv = _mm512_set1_pd(static_cast<double>(t));
+        const __m512d w = _mm512_max_pd(vcs, _mm512_set1_pd(core_[t]));
+        const __mmask8 take = _mm512_cmp_pd_mask(d2, vrs, _CMP_LE_OQ) &
+                              _mm512_cmp_pd_mask(w, bw, _CMP_LT_OQ) &
+                              _mm512_cmp_pd_mask(tv, vs, _CMP_NEQ_OQ);
+        bw = _mm512_mask_blend_pd(take, bw, w);
+        bt = _mm512_mask_blend_pd(take, bt, tv);
+      }
+    }
+    alignas(64) double ow[8], ot[8];
+    _mm512_store_pd(ow, bw);
+    _mm512_store_pd(ot, bt);
+    for (std::uint32_t l = 0; l < cnt; ++l) {
+      cand_w_[p0 + l] = ow[l];
+      cand_t_[p0 + l] = static_cast<std::uint32_t>(ot[l]);
+    }
+  }
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 #endif
 
   // Core distances and first candidate edges, both exact.
@@ -931,26 +1328,78 @@ class BoruvkaKdTree {
   void knn_and_seeds(std::size_t kk) {
     const double inf = std::numeric_limits<double>::infinity();
     std::vector<double> r2(n_);
-    std::vector<std::vector<std::uint32_t>> near(leaves_.size());  // leaves scanned per leaf
+    // Query units: groups of `width` consecutive tree positions searched in one walk, one per
+    // SIMD lane (knn_group_avx512: 8, knn_group_avx2: 4; D = 3, kk <= 16, see KnnLanes), else
+    // leaves (per-query walks). unit_begin[u] is the first tree position of unit u; near[u]
+    // lists, in tree order, the leaves scanned for its queries. kl: list registers per lane.
+    [[maybe_unused]] const std::size_t kl = kk <= 4 ? 4 : kk <= 8 ? 8 : kk <= 12 ? 12 : 16;
+    const std::size_t width = knn_lane_width(dim_, kk, lanes_);  // 0 = per-query search
+    std::vector<std::uint32_t> unit_begin;
+    if (width > 0) {
+      unit_begin.reserve(n_ / width + 2);
+      for (std::size_t p = 0; p < n_; p += width) {
+        unit_begin.push_back(static_cast<std::uint32_t>(p));
+      }
+    } else {
+      for (const auto leaf : leaves_) unit_begin.push_back(nodes_[leaf].begin);
+    }
+    const std::size_t units = unit_begin.size();
+    unit_begin.push_back(static_cast<std::uint32_t>(n_));
+    std::vector<std::vector<std::uint32_t>> near(seeds_ || width == 0 ? units : 0);
     cand_w_.assign(n_, inf);
     cand_t_.assign(n_, 0U);
     const std::size_t chunks = std::size_t{16} * static_cast<std::size_t>(std::max(1, threads_));
-    parallel_chunks(
-        leaves_.size(), chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
-          std::vector<double> bd((kk + 3) & ~std::size_t{3});  // slots for knn_scan_avx2
-          std::vector<std::uint32_t> mark(nodes_.size(), 0U);
-          for (std::size_t li = b; li < e; ++li) {
-            const auto leaf = leaves_[li];
-            const Node& ln = nodes_[leaf];
-            auto& seen = near[li];
-            for (auto s = ln.begin; s < ln.end; ++s) {
-              knn_query(s, leaf, kk, bd.data(), seen, mark, static_cast<std::uint32_t>(li + 1));
-              r2[s] = bd[kk - 1];
-              core_[s] = std::sqrt(bd[kk - 1]);
+    parallel_chunks(units, chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
+      if (width > 0) {
+        std::vector<std::uint32_t> scratch;  // scanned leaves when no seeds are wanted
+        for (std::size_t u = b; u < e; ++u) {
+          const auto p0 = unit_begin[u];
+          const auto cnt = unit_begin[u + 1] - p0;
+          double* out = r2.data() + p0;
+          auto& seen = seeds_ ? near[u] : scratch;
+          if (width == 8) {
+#if defined(DS3D_HDBSCAN_AVX512)
+            switch (kl) {
+              case 4: knn_group_avx512<4>(p0, cnt, kk, out, seen); break;
+              case 8: knn_group_avx512<8>(p0, cnt, kk, out, seen); break;
+              case 12: knn_group_avx512<12>(p0, cnt, kk, out, seen); break;
+              default: knn_group_avx512<16>(p0, cnt, kk, out, seen); break;
             }
-            std::sort(seen.begin(), seen.end());  // leaf ids in preorder = tree order
+#endif
+          } else {
+#if defined(__AVX2__)
+            switch (kl) {
+              case 4: knn_group_avx2<4>(p0, cnt, kk, out, seen); break;
+              case 8: knn_group_avx2<8>(p0, cnt, kk, out, seen); break;
+              case 12: knn_group_avx2<12>(p0, cnt, kk, out, seen); break;
+              default: knn_group_avx2<16>(p0, cnt, kk, out, seen); break;
+            }
+#endif
           }
-        });
+          for (auto s = p0; s < p0 + cnt; ++s) core_[s] = std::sqrt(r2[s]);
+          if (!seeds_) {
+            scratch.clear();
+            continue;
+          }
+          std::sort(near[u].begin(), near[u].end());  // leaf ids in preorder = tree order
+        }
+        return;
+      }
+      std::vector<double> bd((kk + 3) & ~std::size_t{3});  // slots for knn_scan_avx2
+      std::vector<std::uint32_t> mark(nodes_.size(), 0U);
+      for (std::size_t li = b; li < e; ++li) {
+        const auto leaf = leaves_[li];
+        const Node& ln = nodes_[leaf];
+        auto& seen = near[li];
+        for (auto s = ln.begin; s < ln.end; ++s) {
+          knn_query(s, leaf, kk, bd.data(), seen, mark, static_cast<std::uint32_t>(li + 1));
+          r2[s] = bd[kk - 1];
+          core_[s] = std::sqrt(bd[kk - 1]);
+        }
+        std::sort(seen.begin(), seen.end());  // leaf ids in preorder = tree order
+      }
+    });
+    if (!seeds_) return;
     for (std::size_t k = nodes_.size(); k-- > 0;) {
       auto& nd = nodes_[k];
       if (nd.left < 0) {
@@ -962,20 +1411,30 @@ class BoruvkaKdTree {
                                nodes_[static_cast<std::size_t>(nd.right)].min_core);
       }
     }
-    parallel_chunks(leaves_.size(), chunks, threads_,
-                    [&](std::size_t b, std::size_t e, std::size_t) {
-                      for (std::size_t li = b; li < e; ++li) {
-                        const auto leaf = leaves_[li];
-                        const Node& ln = nodes_[leaf];
-                        for (auto s = ln.begin; s < ln.end; ++s) {
-                          double best_w = inf;
-                          std::uint32_t best_t = 0;
-                          seed_query(s, near[li].data(), near[li].size(), r2[s], best_w, best_t);
-                          cand_w_[s] = best_w;
-                          cand_t_[s] = best_t;
-                        }
-                      }
-                    });
+    parallel_chunks(units, chunks, threads_, [&](std::size_t b, std::size_t e, std::size_t) {
+      for (std::size_t u = b; u < e; ++u) {
+        const auto p0 = unit_begin[u];
+#if defined(DS3D_HDBSCAN_AVX512)
+        if (width == 8) {
+          seed_group_avx512(p0, unit_begin[u + 1] - p0, near[u], r2.data() + p0);
+          continue;
+        }
+#endif
+#if defined(__AVX2__)
+        if (width == 4) {
+          seed_group_avx2(p0, unit_begin[u + 1] - p0, near[u], r2.data() + p0);
+          continue;
+        }
+#endif
+        for (auto s = p0; s < unit_begin[u + 1]; ++s) {
+          double best_w = inf;
+          std::uint32_t best_t = 0;
+          seed_query(s, near[u].data(), near[u].size(), r2[s], best_w, best_t);
+          cand_w_[s] = best_w;
+          cand_t_[s] = best_t;
+        }
+      }
+    });
   }
 
   std::int32_t build_node(const double* data, std::vector<std::uint32_t>& order, std::uint32_t b,
@@ -1008,10 +1467,26 @@ class BoruvkaKdTree {
     }
     if (!(hi[split] > lo[split])) return id;  // all points identical: keep as one leaf
     const auto mid = b + (e - b) / 2;
-    std::nth_element(order.begin() + b, order.begin() + mid, order.begin() + e,
-                     [&](std::uint32_t x, std::uint32_t y) {
-                       return data[x * dim_ + split] < data[y * dim_ + split];
-                     });
+    // nth_element on (split coordinate, id) pairs compared by the coordinate: the same
+    // comparisons in the same order as on the ids with an indirect comparator, so the same
+    // permutation (the tree, and with it every tie rule, is unchanged), without a dependent
+    // load in each comparison.
+    // Nodes above kKeyedMax points (only for n > kKeyedMax) keep the indirect comparator, so
+    // the scratch stays at most 1 MiB.
+    if (e - b <= kKeyedMax) {
+      auto* kv = keyed_.data();
+      for (auto i = b; i < e; ++i) kv[i - b] = {data[order[i] * dim_ + split], order[i]};
+      std::nth_element(
+          kv, kv + (mid - b), kv + (e - b),
+          [](const std::pair<double, std::uint32_t>& x,
+             const std::pair<double, std::uint32_t>& y) { return x.first < y.first; });
+      for (auto i = b; i < e; ++i) order[i] = kv[i - b].second;
+    } else {
+      std::nth_element(order.begin() + b, order.begin() + mid, order.begin() + e,
+                       [&](std::uint32_t x, std::uint32_t y) {
+                         return data[x * dim_ + split] < data[y * dim_ + split];
+                       });
+    }
     const auto l = build_node(data, order, b, mid);
     const auto r = build_node(data, order, mid, e);
     nodes_[static_cast<std::size_t>(id)].left = l;
@@ -1152,6 +1627,34 @@ class BoruvkaKdTree {
     return s;
   }
 
+  // box_dist2(q, a) and box_dist2(q, b) (bitwise: for D = 3 with AVX2 both boxes' gaps are
+  // squared in two vectors whose fourth lane is 0, and one horizontal add gives
+  // (g0² + g1²) + g2² for each, box_dist2's order).
+  void box_dist2_pair(const double* q, std::size_t a, std::size_t b, double& da,
+                      double& db) const {
+#if defined(__AVX2__)
+    if (dim_ == 3) {
+      const __m256i m3 = _mm256_set_epi64x(0, -1, -1, -1);
+      const __m256d vq = _mm256_maskload_pd(q, m3);
+      const __m256d zero = _mm256_setzero_pd();
+      auto gap2 = [&](std::size_t k) {
+        const __m256d lo = _mm256_maskload_pd(lo_.data() + k * 3, m3);
+        const __m256d hi = _mm256_maskload_pd(hi_.data() + k * 3, m3);
+        const __m256d g =
+            _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(lo, vq), _mm256_sub_pd(vq, hi)), zero);
+        return no_contract256(_mm256_mul_pd(g, g));
+      };
+      const __m256d h = _mm256_hadd_pd(gap2(a), gap2(b));  // [a0+a1, b0+b1, a2+0, b2+0]
+      const __m128d sum = _mm_add_pd(_mm256_castpd256_pd128(h), _mm256_extractf128_pd(h, 1));
+      da = _mm_cvtsd_f64(sum);
+      db = _mm_cvtsd_f64(_mm_unpackhi_pd(sum, sum));
+      return;
+    }
+#endif
+    da = box_dist2(q, a);
+    db = box_dist2(q, b);
+  }
+
   // Improves point qi's candidate edge given `comp_bound`, the best edge weight known for its
   // component (tightened in place). Only strictly better edges are accepted.
   void query(std::size_t qi, double& comp_bound) {
@@ -1206,8 +1709,11 @@ class BoruvkaKdTree {
       }
       const auto l = static_cast<std::size_t>(nd.left);
       const auto r = static_cast<std::size_t>(nd.right);
-      const Entry el{nd.left, std::max(cqore, nodes_[l].min_core), box_dist2(q, l)};
-      const Entry er{nd.right, std::max(cqore, nodes_[r].min_core), box_dist2(q, r)};
+      double bl = 0.0;
+      double br = 0.0;
+      box_dist2_pair(q, l, r, bl, br);
+      const Entry el{nd.left, std::max(cqore, nodes_[l].min_core), bl};
+      const Entry er{nd.right, std::max(cqore, nodes_[r].min_core), br};
       const bool keep_l = el.lbc < bound && el.box2 <= hi2;
       const bool keep_r = er.lbc < bound && er.box2 <= hi2;
       // Push the farther child first so the nearer one is searched first.
@@ -1231,11 +1737,14 @@ class BoruvkaKdTree {
 
   std::size_t n_, dim_;
   int threads_;
+  KnnLanes lanes_;
+  bool seeds_ = true;  // knn_and_seeds also seeds the candidate edges
   std::vector<std::uint32_t> perm_;  // tree position -> point id
   std::vector<double> pts_;          // coordinates in tree order
   std::vector<double> core_;         // core distances in tree order
   std::vector<Node> nodes_;
   std::vector<double> lo_, hi_;
+  std::vector<std::pair<double, std::uint32_t>> keyed_;  // build scratch: (coordinate, id)
   std::vector<double> soa_;            // coordinates per dimension: soa_[j * stride_ + position]
   std::size_t stride_ = 0;             // n_ + kLeafSize (zero padding)
   std::vector<std::uint32_t> leaves_;  // leaf node ids in tree order
@@ -1251,14 +1760,23 @@ class BoruvkaKdTree {
 // Borůvka, sharing one tree.
 inline std::vector<MstEdge> boruvka_kdtree(const double* data, std::size_t n, std::size_t dim,
                                            std::size_t k, int num_threads,
-                                           std::vector<double>& core) {
+                                           std::vector<double>& core,
+                                           KnnLanes lanes = KnnLanes::kAuto) {
   if (n < 2) {
     core.assign(n, 0.0);
     return {};
   }
-  BoruvkaKdTree t(data, n, dim, k, num_threads);
+  BoruvkaKdTree t(data, n, dim, k, num_threads, lanes);
   core = t.core_distances();
   return t.run();
+}
+
+// Core distances (k-th nearest other point, 1 <= k < n) only, by BoruvkaKdTree's search.
+inline std::vector<double> boruvka_core_distances(const double* data, std::size_t n,
+                                                  std::size_t dim, std::size_t k, int num_threads,
+                                                  KnnLanes lanes = KnnLanes::kAuto) {
+  if (n < 2) return std::vector<double>(n, 0.0);
+  return BoruvkaKdTree(data, n, dim, k, num_threads, lanes, false).core_distances();
 }
 
 }  // namespace ds3d::detail
