@@ -49,13 +49,14 @@ int main(int argc, char** argv) {
     std::memcpy(&b, &v, sizeof b);
     f = f * 1099511628211ULL + b;
   };
-  for (const auto& e : r.min_spanning_tree) f = f * 1099511628211ULL + (std::uint64_t{e.from} << 32U | e.to);
+  for (const auto& e : r.min_spanning_tree)
+    f = f * 1099511628211ULL + (std::uint64_t{e.from} << 32U | e.to);
   for (const double v : r.core_distances) mix(v);
   for (const double v : r.probabilities) mix(v);
   for (const double v : r.outlier_scores) mix(v);
   for (const double v : r.cluster_persistence) mix(v);
-  std::printf("clusters %d hash %llx full %llx\n", r.num_clusters, static_cast<unsigned long long>(h),
-              static_cast<unsigned long long>(f));
+  std::printf("clusters %d hash %llx full %llx\n", r.num_clusters,
+              static_cast<unsigned long long>(h), static_cast<unsigned long long>(f));
   const int reps = argc > 4 ? std::atoi(argv[4]) : 0;
   if (reps > 0) {
     auto cpu_ms = [] {

@@ -242,8 +242,8 @@ void LocalBaParams::validate() const {
   constexpr const char* f = "ds3d::slam::LocalBaParams";
   DS3D_CHECK(iterations_first >= 1, f, ": iterations_first must be >= 1 (got ", iterations_first,
              ")");
-  DS3D_CHECK(iterations_second >= 0, f, ": iterations_second must be >= 0 (got ",
-             iterations_second, ")");
+  DS3D_CHECK(iterations_second >= 0, f, ": iterations_second must be >= 0 (got ", iterations_second,
+             ")");
   DS3D_CHECK(std::isfinite(chi2_mono) && chi2_mono > 0, f, ": chi2_mono must be > 0 (got ",
              chi2_mono, ")");
   DS3D_CHECK(std::isfinite(chi2_stereo) && chi2_stereo > 0, f, ": chi2_stereo must be > 0 (got ",
@@ -265,7 +265,8 @@ PoseOptimizationResult optimize_pose(const StereoIntrinsics& k, const Eigen::Iso
 
   std::vector<std::unique_ptr<PoseCost>> costs;
   costs.reserve(n);
-  for (std::size_t i = 0; i < n; ++i) costs.push_back(std::make_unique<PoseCost>(k, points[i], observations[i]));
+  for (std::size_t i = 0; i < n; ++i)
+    costs.push_back(std::make_unique<PoseCost>(k, points[i], observations[i]));
   PoseManifold manifold;
   ceres::HuberLoss huber_mono(std::sqrt(params.chi2_mono));
   ceres::HuberLoss huber_stereo(std::sqrt(params.chi2_stereo));
@@ -326,7 +327,8 @@ LocalBaResult local_bundle_adjustment(const StereoIntrinsics& k,
   std::vector<Params7> x(poses.size());
   for (std::size_t i = 0; i < poses.size(); ++i) x[i] = to_params(poses[i]);
   std::vector<std::array<double, 3>> p(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) p[i] = {points[i].x(), points[i].y(), points[i].z()};
+  for (std::size_t i = 0; i < points.size(); ++i)
+    p[i] = {points[i].x(), points[i].y(), points[i].z()};
 
   std::vector<std::unique_ptr<BaCost>> costs;
   costs.reserve(observations.size());
@@ -341,9 +343,9 @@ LocalBaResult local_bundle_adjustment(const StereoIntrinsics& k,
     for (std::size_t i = 0; i < observations.size(); ++i) {
       const auto& o = observations[i];
       bool front = false;
-      const double chi2 = chi2_of(k, from_params(x[static_cast<std::size_t>(o.keyframe)].data()),
-                                  Eigen::Vector3d(p[static_cast<std::size_t>(o.point)].data()),
-                                  o.obs, &front);
+      const double chi2 =
+          chi2_of(k, from_params(x[static_cast<std::size_t>(o.keyframe)].data()),
+                  Eigen::Vector3d(p[static_cast<std::size_t>(o.point)].data()), o.obs, &front);
       const double th = o.obs.stereo() ? params.chi2_stereo : params.chi2_mono;
       result.outlier[i] = static_cast<std::uint8_t>(!front || chi2 > th);
     }

@@ -2,7 +2,6 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 #include "ds3d/dynamic_sources.hpp"
 
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -148,9 +147,9 @@ std::vector<std::int32_t> class_labels(const std::vector<std::string>& wanted,
     if (it == known.end()) {
       std::ostringstream names;
       for (std::size_t i = 0; i < known.size(); ++i) names << (i > 0 ? ", " : "") << known[i];
-      throw InvalidArgument(detail::concat("ds3d::slam::HtxSource: class '", w,
-                                           "' is not a class of the detector (classes: ",
-                                           names.str(), ")"));
+      throw InvalidArgument(
+          detail::concat("ds3d::slam::HtxSource: class '", w,
+                         "' is not a class of the detector (classes: ", names.str(), ")"));
     }
     out.push_back(static_cast<std::int32_t>(it - known.begin()));
   }
@@ -240,7 +239,8 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     Eigen::Matrix<float, 8, 3> corners;
     const auto up_corners = box::corners(b);
     for (int k = 0; k < 8; ++k) {
-      corners.row(k) = (R_cam_up * up_corners[static_cast<std::size_t>(k)]).cast<float>().transpose();
+      corners.row(k) =
+          (R_cam_up * up_corners[static_cast<std::size_t>(k)]).cast<float>().transpose();
     }
     last_objects_.boxes_3d.push_back(corners);
     boxes_.push_back(b);
@@ -266,16 +266,16 @@ DynamicObjects CompositeSource::detect(const FrameInput& frame, const PinholeCam
   FrameInput rest = frame;
   const std::vector<ImageBox> boxes = image_boxes(out, camera);
   const cv::Mat& m = out.pixel_mask;
-  const bool has_mask = !m.empty() && m.type() == CV_8UC1 && m.cols == camera.width &&
-                        m.rows == camera.height;
+  const bool has_mask =
+      !m.empty() && m.type() == CV_8UC1 && m.cols == camera.width && m.rows == camera.height;
   if (!frame.depth.empty() && (!boxes.empty() || has_mask)) {
     rest.depth = frame.depth.clone();  // the caller's image is shared: never write into it
     const cv::Rect image(0, 0, rest.depth.cols, rest.depth.rows);
     for (const ImageBox& b : boxes) {
-      const cv::Rect r(cv::Point(static_cast<int>(std::floor(b.x_min)),
-                                 static_cast<int>(std::floor(b.y_min))),
-                       cv::Point(static_cast<int>(std::ceil(b.x_max)) + 1,
-                                 static_cast<int>(std::ceil(b.y_max)) + 1));
+      const cv::Rect r(
+          cv::Point(static_cast<int>(std::floor(b.x_min)), static_cast<int>(std::floor(b.y_min))),
+          cv::Point(static_cast<int>(std::ceil(b.x_max)) + 1,
+                    static_cast<int>(std::ceil(b.y_max)) + 1));
       rest.depth(r & image).setTo(0);
     }
     if (has_mask && m.size() == rest.depth.size()) rest.depth.setTo(0, m);
@@ -321,17 +321,16 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
       if (b.x_max < q.x_min || q.x_max < b.x_min || b.y_max < q.y_min || q.y_max < b.y_min) {
         continue;
       }
-      if (b.has_depth_range() && q.has_depth_range() &&
-          (b.z_max < q.z_min || q.z_max < b.z_min)) {
+      if (b.has_depth_range() && q.has_depth_range() && (b.z_max < q.z_min || q.z_max < b.z_min)) {
         continue;
       }
       return true;
     }
     if (!has_mask) return false;
-    const cv::Rect r(cv::Point(static_cast<int>(std::floor(b.x_min)),
-                               static_cast<int>(std::floor(b.y_min))),
-                     cv::Point(static_cast<int>(std::ceil(b.x_max)) + 1,
-                               static_cast<int>(std::ceil(b.y_max)) + 1));
+    const cv::Rect r(
+        cv::Point(static_cast<int>(std::floor(b.x_min)), static_cast<int>(std::floor(b.y_min))),
+        cv::Point(static_cast<int>(std::ceil(b.x_max)) + 1,
+                  static_cast<int>(std::ceil(b.y_max)) + 1));
     const cv::Rect ri = r & image;
     return ri.area() > 0 && cv::countNonZero(m(ri)) > 0;
   };
@@ -387,8 +386,9 @@ std::filesystem::path find_default_weights() {
     if (std::filesystem::is_regular_file(p, ec)) return p;
     tried << (tried.tellp() > 0 ? ", " : "") << p.string();
   }
-  throw IoError(detail::concat("ds3d::slam::find_default_weights: no HTx weights file found (tried ",
-                               tried.str(), "); pass one with --weights PATH"));
+  throw IoError(
+      detail::concat("ds3d::slam::find_default_weights: no HTx weights file found (tried ",
+                     tried.str(), "); pass one with --weights PATH"));
 }
 
 std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec,
@@ -432,8 +432,10 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
       return x == "geometric" || x == "htx" || (x.rfind("file:", 0) == 0 && x.size() > 5);
     };
     DS3D_CHECK(simple(a) && (simple(b) || b.find('+') != std::string::npos),
-               "ds3d::slam::make_dynamic_source: '", spec, "' must join two sources other than "
-               "none (expected ", kKnown, ")");
+               "ds3d::slam::make_dynamic_source: '", spec,
+               "' must join two sources other than "
+               "none (expected ",
+               kKnown, ")");
     return std::make_shared<CompositeSource>(make_dynamic_source(a, options),
                                              make_dynamic_source(b, options));
   }

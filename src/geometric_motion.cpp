@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <cstring>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <utility>
 
@@ -155,15 +155,14 @@ struct Box3 {
   }
 };
 
-
 // The warp grid of one frame, as GeometricMotionSource::detect builds it: cell c = j·gw + i is
 // the pixel (off + i·s, off + j·s); state 0 = no usable depth (missing, too far, depth edge),
 // >= 1 usable, 3 = moved into empty space; cz its depth [m] and cp its camera-frame point, set
 // for every cell with depth (also edge cells, state 0).
 struct SegmentGrid {
   const std::vector<std::uint8_t>& state;
-  const std::vector<float>& cz;               // depth of every cell with depth [m], 0 = none
-  const std::vector<Eigen::Vector3f>& cp;     // its camera-frame point
+  const std::vector<float>& cz;            // depth of every cell with depth [m], 0 = none
+  const std::vector<Eigen::Vector3f>& cp;  // its camera-frame point
   int gw, gh, s, off;
 };
 
@@ -395,7 +394,8 @@ std::vector<cv::DMatch> mutual_ratio_matches(const cv::Mat& a, const cv::Mat& b,
   if (a.rows == 0 || b.rows < 2 || a.cols != 32 || b.cols != 32) return out;
   const auto pack = [](const cv::Mat& m) {
     std::vector<std::array<std::uint64_t, 4>> v(static_cast<std::size_t>(m.rows));
-    for (int r = 0; r < m.rows; ++r) std::memcpy(v[static_cast<std::size_t>(r)].data(), m.ptr(r), 32);
+    for (int r = 0; r < m.rows; ++r)
+      std::memcpy(v[static_cast<std::size_t>(r)].data(), m.ptr(r), 32);
     return v;
   };
   const auto pa = pack(a);
@@ -738,8 +738,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   std::vector<Eigen::Vector3f> cp;  // camera-frame point of each usable cell
   if (stats_.pose_ok && gw > 0 && gh > 0) {
     const std::size_t nc = static_cast<std::size_t>(gw) * static_cast<std::size_t>(gh);
-    if (grid_rays_.size() != nc || !same_camera(grid_camera_, camera) ||
-        grid_stride_ != s) {
+    if (grid_rays_.size() != nc || !same_camera(grid_camera_, camera) || grid_stride_ != s) {
       grid_rays_.resize(nc);
       for (int j = 0; j < gh; ++j) {
         for (int i = 0; i < gw; ++i) {
@@ -813,8 +812,9 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
         ++stats_.num_warp_tested;
         // In front of every surface the reference saw around there: the space was empty.
         const double slope =
-            per_px * std::max<double>(wref->win_max.at<std::uint16_t>(qv, qu) - rmn,
-                                      mxrow[u] - mnrow[u]) / ds;
+            per_px *
+            std::max<double>(wref->win_max.at<std::uint16_t>(qv, qu) - rmn, mxrow[u] - mnrow[u]) /
+            ds;
         const double sig = std::sqrt(sigma0(q.z()) * sigma0(q.z()) + sigma0(zr) * sigma0(zr) +
                                      (slope * sigma_lat) * (slope * sigma_lat));
         const double thr = std::max<double>(params_.min_depth_residual, k_sigma * sig);

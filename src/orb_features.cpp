@@ -25,7 +25,8 @@ float ic_angle(const cv::Mat& img, int x, int y) {
   long m01 = 0;
   long m10 = 0;
   for (int v = -kPatchRadius; v <= kPatchRadius; ++v) {
-    const int umax = static_cast<int>(std::sqrt(static_cast<double>(kPatchRadius * kPatchRadius - v * v)));
+    const int umax =
+        static_cast<int>(std::sqrt(static_cast<double>(kPatchRadius * kPatchRadius - v * v)));
     const std::uint8_t* row = img.ptr<std::uint8_t>(y + v);
     for (int u = -umax; u <= umax; ++u) {
       const long val = row[x + u];
@@ -72,7 +73,8 @@ std::vector<std::vector<cv::KeyPoint>> detect_cells(const cv::Mat& img, const Or
     k.pt.y += static_cast<float>(inner.y);
     int cx = 0;
     int cy = 0;
-    if (cell_of(k.pt.x, k.pt.y, &cx, &cy)) cells[static_cast<std::size_t>(cy * nx + cx)].push_back(k);
+    if (cell_of(k.pt.x, k.pt.y, &cx, &cy))
+      cells[static_cast<std::size_t>(cy * nx + cx)].push_back(k);
   }
   for (int cy = 0; cy < ny; ++cy) {
     for (int cx = 0; cx < nx; ++cx) {
@@ -116,9 +118,9 @@ std::vector<cv::KeyPoint> select_spread(const std::vector<std::vector<cv::KeyPoi
     if (round.empty()) break;
     const auto need = static_cast<std::size_t>(quota) - out.size();
     if (round.size() > need) {
-      std::stable_sort(round.begin(), round.end(), [](const cv::KeyPoint& a, const cv::KeyPoint& b) {
-        return a.response > b.response;
-      });
+      std::stable_sort(
+          round.begin(), round.end(),
+          [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
       round.resize(need);
     }
     out.insert(out.end(), round.begin(), round.end());
@@ -152,14 +154,16 @@ OrbExtractor::OrbExtractor(const OrbParams& params) : params_(params) {
   params_.validate();
   const auto levels = static_cast<std::size_t>(params_.num_levels);
   scales_.resize(levels);
-  for (std::size_t l = 0; l < levels; ++l) scales_[l] = std::pow(params_.scale_factor, static_cast<double>(l));
+  for (std::size_t l = 0; l < levels; ++l)
+    scales_[l] = std::pow(params_.scale_factor, static_cast<double>(l));
   // Geometric share per level, proportional to the level's area (ORB-SLAM2's ORBextractor).
   const double f = 1.0 / params_.scale_factor;
   const double first = params_.num_features * (1.0 - f) / (1.0 - std::pow(f, params_.num_levels));
   features_per_level_.resize(levels);
   int total = 0;
   for (std::size_t l = 0; l + 1 < levels; ++l) {
-    features_per_level_[l] = static_cast<int>(std::lround(first * std::pow(f, static_cast<double>(l))));
+    features_per_level_[l] =
+        static_cast<int>(std::lround(first * std::pow(f, static_cast<double>(l))));
     total += features_per_level_[l];
   }
   features_per_level_[levels - 1] = std::max(0, params_.num_features - total);
@@ -224,7 +228,8 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
   out.depth.assign(n, 0.0F);
   for (std::size_t i = 0; i < n; ++i) {
     const cv::Point2f& pt = out.keypoints[i].pt;
-    const Eigen::Vector2d xn = camera.undistort({(pt.x - camera.cx) / camera.fx, (pt.y - camera.cy) / camera.fy});
+    const Eigen::Vector2d xn =
+        camera.undistort({(pt.x - camera.cx) / camera.fx, (pt.y - camera.cy) / camera.fy});
     out.undistorted[i] = Eigen::Vector2f(static_cast<float>(camera.fx * xn.x() + camera.cx),
                                          static_cast<float>(camera.fy * xn.y() + camera.cy));
     if (!depth.empty()) {

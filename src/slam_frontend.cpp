@@ -111,7 +111,9 @@ struct FrameData {
   std::vector<int> points;  // map point id or -1
   FeatureGrid grid;
   [[nodiscard]] std::size_t size() const { return uv.size(); }
-  [[nodiscard]] bool is_close(std::size_t i) const { return depth[i] > 0 && depth[i] <= close_depth; }
+  [[nodiscard]] bool is_close(std::size_t i) const {
+    return depth[i] > 0 && depth[i] <= close_depth;
+  }
   [[nodiscard]] double u_right(std::size_t i, double bf) const {
     return depth[i] > 0 ? uv[i].x() - bf / depth[i] : -1.0;
   }
@@ -140,12 +142,18 @@ struct BaJob {
 
 const char* to_string(TrackState s) noexcept {
   switch (s) {
-    case TrackState::kNotInitialized: return "not_initialized";
-    case TrackState::kInitialized: return "initialized";
-    case TrackState::kTracking: return "tracking";
-    case TrackState::kRelocalized: return "relocalized";
-    case TrackState::kLost: return "lost";
-    case TrackState::kReanchored: return "reanchored";
+    case TrackState::kNotInitialized:
+      return "not_initialized";
+    case TrackState::kInitialized:
+      return "initialized";
+    case TrackState::kTracking:
+      return "tracking";
+    case TrackState::kRelocalized:
+      return "relocalized";
+    case TrackState::kLost:
+      return "lost";
+    case TrackState::kReanchored:
+      return "reanchored";
   }
   return "unknown";
 }
@@ -157,10 +165,12 @@ void FrontendConfig::validate() const {
   pose.validate();
   local_ba.validate();
   DS3D_CHECK(std::isfinite(bf) && bf > 0, f, ": bf must be > 0 (got ", bf, ")");
-  DS3D_CHECK(min_init_points >= 10, f, ": min_init_points must be >= 10 (got ", min_init_points, ")");
+  DS3D_CHECK(min_init_points >= 10, f, ": min_init_points must be >= 10 (got ", min_init_points,
+             ")");
   DS3D_CHECK(min_tracked_inliers >= 10, f, ": min_tracked_inliers must be >= 10 (got ",
              min_tracked_inliers, ")");
-  DS3D_CHECK(keyframe_max_gap >= 1, f, ": keyframe_max_gap must be >= 1 (got ", keyframe_max_gap, ")");
+  DS3D_CHECK(keyframe_max_gap >= 1, f, ": keyframe_max_gap must be >= 1 (got ", keyframe_max_gap,
+             ")");
   DS3D_CHECK(local_window >= 2, f, ": local_window must be >= 2 (got ", local_window, ")");
   DS3D_CHECK(max_fixed_keyframes >= 1, f, ": max_fixed_keyframes must be >= 1 (got ",
              max_fixed_keyframes, ")");
@@ -183,8 +193,8 @@ struct SlamFrontend::Impl {
   FrontendConfig cfg;
   OrbExtractor extractor;
   StereoIntrinsics k;
-  std::vector<double> scale;        // per level
-  std::vector<double> inv_sigma2;   // per level
+  std::vector<double> scale;       // per level
+  std::vector<double> inv_sigma2;  // per level
   std::shared_ptr<DynamicObjectSource> source;
   std::shared_ptr<DynamicFeatureMasker> masker;
 
@@ -227,7 +237,9 @@ struct SlamFrontend::Impl {
 
   Impl(FrontendConfig c, std::shared_ptr<DynamicObjectSource> s,
        std::shared_ptr<DynamicFeatureMasker> m)
-      : cfg(std::move(c)), extractor((cfg.validate(), cfg.orb)), source(std::move(s)),
+      : cfg(std::move(c)),
+        extractor((cfg.validate(), cfg.orb)),
+        source(std::move(s)),
         masker(std::move(m)) {
     if (!source) source = std::make_shared<NoDynamicObjects>();
     if (!masker) masker = std::make_shared<NoDynamicMasker>();
@@ -247,7 +259,9 @@ struct SlamFrontend::Impl {
   [[nodiscard]] int obs_weight(const MapPoint& p) const {
     int n = 0;
     for (const auto& [kf, idx] : p.obs) {
-      n += keyframes[static_cast<std::size_t>(kf)].data.depth[static_cast<std::size_t>(idx)] > 0 ? 2 : 1;
+      n += keyframes[static_cast<std::size_t>(kf)].data.depth[static_cast<std::size_t>(idx)] > 0
+               ? 2
+               : 1;
     }
     return n;
   }
@@ -263,16 +277,19 @@ struct SlamFrontend::Impl {
 
   [[nodiscard]] int predict_level(const MapPoint& p, double dist) const {
     if (dist <= 0) return 0;
-    const int l = static_cast<int>(std::ceil(std::log(p.max_dist / dist) / std::log(cfg.orb.scale_factor)));
+    const int l =
+        static_cast<int>(std::ceil(std::log(p.max_dist / dist) / std::log(cfg.orb.scale_factor)));
     return std::clamp(l, 0, cfg.orb.num_levels - 1);
   }
 
   void update_point_geometry(MapPoint& p) {
     if (p.obs.empty()) return;
     Eigen::Vector3d n = Eigen::Vector3d::Zero();
-    for (const auto& [kf, idx] : p.obs) n += (p.pos - keyframes[static_cast<std::size_t>(kf)].center()).normalized();
+    for (const auto& [kf, idx] : p.obs)
+      n += (p.pos - keyframes[static_cast<std::size_t>(kf)].center()).normalized();
     p.normal = n.normalized();
-    const auto ref = std::find_if(p.obs.begin(), p.obs.end(), [&](const auto& o) { return o.first == p.ref_kf; });
+    const auto ref = std::find_if(p.obs.begin(), p.obs.end(),
+                                  [&](const auto& o) { return o.first == p.ref_kf; });
     const auto& [rkf, ridx] = ref != p.obs.end() ? *ref : p.obs.front();
     const Keyframe& kf = keyframes[static_cast<std::size_t>(rkf)];
     const double dist = (p.pos - kf.center()).norm();
@@ -285,12 +302,14 @@ struct SlamFrontend::Impl {
   void update_point_descriptor(MapPoint& p) {
     if (p.obs.size() <= 1) return;
     std::vector<Descriptor> ds;
-    for (const auto& [kf, idx] : p.obs) ds.push_back(row_descriptor(keyframes[static_cast<std::size_t>(kf)].data.desc, idx));
+    for (const auto& [kf, idx] : p.obs)
+      ds.push_back(row_descriptor(keyframes[static_cast<std::size_t>(kf)].data.desc, idx));
     std::size_t best = 0;
     int best_median = std::numeric_limits<int>::max();
     std::vector<int> d(ds.size());
     for (std::size_t i = 0; i < ds.size(); ++i) {
-      for (std::size_t j = 0; j < ds.size(); ++j) d[j] = descriptor_distance(ds[i].data(), ds[j].data());
+      for (std::size_t j = 0; j < ds.size(); ++j)
+        d[j] = descriptor_distance(ds[i].data(), ds[j].data());
       std::nth_element(d.begin(), d.begin() + static_cast<long>(d.size() / 2), d.end());
       const int med = d[d.size() / 2];
       if (med < best_median) {
@@ -456,7 +475,8 @@ struct SlamFrontend::Impl {
     for (std::size_t i = 0; i < f.size(); ++i) {
       if (f.points[i] < 0) continue;
       const Eigen::Vector3d& p = points[static_cast<std::size_t>(f.points[i])].pos;
-      obj.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+      obj.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                       static_cast<float>(p.z()));
       img.emplace_back(f.uv[i].x(), f.uv[i].y());
     }
     if (obj.size() < 15) return false;
@@ -494,7 +514,9 @@ struct SlamFrontend::Impl {
     int n = search_by_projection(f, T_cw, cand, 15.0, false, frame_counter);
     if (n < 20) {
       std::fill(f.points.begin(), f.points.end(), -1);
-      for (const int pid : cand) points[static_cast<std::size_t>(pid)].last_frame_seen = std::numeric_limits<std::size_t>::max();
+      for (const int pid : cand)
+        points[static_cast<std::size_t>(pid)].last_frame_seen =
+            std::numeric_limits<std::size_t>::max();
       n = search_by_projection(f, T_cw, cand, 30.0, false, frame_counter);
     }
     if (n < 20) return false;
@@ -540,7 +562,8 @@ struct SlamFrontend::Impl {
     }
     if (counter.empty()) return {};
     std::vector<std::pair<int, int>> sorted(counter.begin(), counter.end());
-    std::stable_sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+    std::stable_sort(sorted.begin(), sorted.end(),
+                     [](const auto& a, const auto& b) { return a.second > b.second; });
     ref_kf = sorted.front().first;
     std::vector<int> out;
     std::set<int> in;
@@ -553,7 +576,8 @@ struct SlamFrontend::Impl {
     for (std::size_t i = 0; i < direct && out.size() < 80; ++i) {
       const auto& cov = keyframes[static_cast<std::size_t>(out[i])].covis;
       std::vector<std::pair<int, int>> nb(cov.begin(), cov.end());
-      std::stable_sort(nb.begin(), nb.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+      std::stable_sort(nb.begin(), nb.end(),
+                       [](const auto& a, const auto& b) { return a.second > b.second; });
       int added = 0;
       for (const auto& [id, w] : nb) {
         if (added >= 10 || out.size() >= 80) break;
@@ -647,7 +671,8 @@ struct SlamFrontend::Impl {
     for (std::size_t i = 0; i < K.data.size(); ++i) {
       if (K.data.depth[i] > 0) by_depth.emplace_back(K.data.depth[i], i);
     }
-    std::stable_sort(by_depth.begin(), by_depth.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    std::stable_sort(by_depth.begin(), by_depth.end(),
+                     [](const auto& x, const auto& y) { return x.first < y.first; });
     int n_points = 0;
     for (const auto& [depth_i, i] : by_depth) {
       if (K.id > 0 && depth_i > K.data.close_depth && n_points > 100) break;
@@ -656,7 +681,8 @@ struct SlamFrontend::Impl {
       int pid = -1;
       MapPoint p;
       const double z = K.data.depth[i];
-      const Eigen::Vector3d pc((K.data.uv[i].x() - k.cx) / k.fx * z, (K.data.uv[i].y() - k.cy) / k.fy * z, z);
+      const Eigen::Vector3d pc((K.data.uv[i].x() - k.cx) / k.fx * z,
+                               (K.data.uv[i].y() - k.cy) / k.fy * z, z);
       p.pos = T_wc * pc;
       p.desc = row_descriptor(K.data.desc, static_cast<int>(i));
       p.obs.emplace_back(K.id, static_cast<int>(i));
@@ -686,7 +712,8 @@ struct SlamFrontend::Impl {
         if (other != K.id) ++shared[other];
       }
     }
-    for (const auto& [other, w] : K.covis) keyframes[static_cast<std::size_t>(other)].covis.erase(K.id);
+    for (const auto& [other, w] : K.covis)
+      keyframes[static_cast<std::size_t>(other)].covis.erase(K.id);
     K.covis.clear();
     int best = -1;
     int best_w = 0;
@@ -710,7 +737,8 @@ struct SlamFrontend::Impl {
   [[nodiscard]] std::vector<int> best_covisible(int kf_id, int n) const {
     const auto& cov = keyframes[static_cast<std::size_t>(kf_id)].covis;
     std::vector<std::pair<int, int>> nb(cov.begin(), cov.end());
-    std::stable_sort(nb.begin(), nb.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+    std::stable_sort(nb.begin(), nb.end(),
+                     [](const auto& a, const auto& b) { return a.second > b.second; });
     std::vector<int> out;
     for (const auto& [id, w] : nb) {
       if (static_cast<int>(out.size()) >= n) break;
@@ -726,8 +754,10 @@ struct SlamFrontend::Impl {
     MapPoint& a = points[static_cast<std::size_t>(from)];
     MapPoint& b = points[static_cast<std::size_t>(into)];
     for (const auto& [kf, idx] : a.obs) {
-      auto& slot = keyframes[static_cast<std::size_t>(kf)].data.points[static_cast<std::size_t>(idx)];
-      const bool seen = std::any_of(b.obs.begin(), b.obs.end(), [&](const auto& o) { return o.first == kf; });
+      auto& slot =
+          keyframes[static_cast<std::size_t>(kf)].data.points[static_cast<std::size_t>(idx)];
+      const bool seen =
+          std::any_of(b.obs.begin(), b.obs.end(), [&](const auto& o) { return o.first == kf; });
       if (seen) {
         slot = -1;
       } else {
@@ -755,7 +785,9 @@ struct SlamFrontend::Impl {
     for (const int pid : cands) {
       if (pid < 0) continue;
       MapPoint& p = points[static_cast<std::size_t>(pid)];
-      if (p.bad || std::any_of(p.obs.begin(), p.obs.end(), [&](const auto& o) { return o.first == kf_id; })) continue;
+      if (p.bad ||
+          std::any_of(p.obs.begin(), p.obs.end(), [&](const auto& o) { return o.first == kf_id; }))
+        continue;
       const Eigen::Vector3d pc = K.T_cw * p.pos;
       if (pc.z() <= 1e-3) continue;
       const double u = k.fx * pc.x() / pc.z() + k.cx;
@@ -823,12 +855,14 @@ struct SlamFrontend::Impl {
         if (seen.insert(id).second) targets.push_back(id);
       }
     }
-    for (const int id : targets) fuse_into(id, keyframes[static_cast<std::size_t>(kf_id)].data.points);
+    for (const int id : targets)
+      fuse_into(id, keyframes[static_cast<std::size_t>(kf_id)].data.points);
     std::vector<int> cands;
     std::set<int> cand_set;
     for (const int id : targets) {
       for (const int pid : keyframes[static_cast<std::size_t>(id)].data.points) {
-        if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad && cand_set.insert(pid).second) cands.push_back(pid);
+        if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad && cand_set.insert(pid).second)
+          cands.push_back(pid);
       }
     }
     fuse_into(kf_id, cands);
@@ -856,7 +890,8 @@ struct SlamFrontend::Impl {
   void erase_point(int pid) {
     MapPoint& p = points[static_cast<std::size_t>(pid)];
     p.bad = true;
-    for (const auto& [kf, idx] : p.obs) keyframes[static_cast<std::size_t>(kf)].data.points[static_cast<std::size_t>(idx)] = -1;
+    for (const auto& [kf, idx] : p.obs)
+      keyframes[static_cast<std::size_t>(kf)].data.points[static_cast<std::size_t>(idx)] = -1;
     p.obs.clear();
   }
 
@@ -867,7 +902,8 @@ struct SlamFrontend::Impl {
     apply_ba_if_due(true);
     const Keyframe& K = keyframes[static_cast<std::size_t>(kf_id)];
     std::vector<std::pair<int, int>> nb(K.covis.begin(), K.covis.end());
-    std::stable_sort(nb.begin(), nb.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
+    std::stable_sort(nb.begin(), nb.end(),
+                     [](const auto& a, const auto& b) { return a.second > b.second; });
     std::vector<int> local{kf_id};
     for (const auto& [id, w] : nb) {
       if (static_cast<int>(local.size()) >= cfg.local_window) break;
@@ -878,7 +914,8 @@ struct SlamFrontend::Impl {
     std::set<int> pts_set;
     for (const int id : local) {
       for (const int pid : keyframes[static_cast<std::size_t>(id)].data.points) {
-        if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad && pts_set.insert(pid).second) pts.push_back(pid);
+        if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad && pts_set.insert(pid).second)
+          pts.push_back(pid);
       }
     }
     // Fixed keyframes: others observing the local points, most-sharing first.
@@ -889,8 +926,10 @@ struct SlamFrontend::Impl {
       }
     }
     std::vector<std::pair<int, int>> fixed_sorted(others.begin(), others.end());
-    std::stable_sort(fixed_sorted.begin(), fixed_sorted.end(), [](const auto& a, const auto& b) { return a.second > b.second; });
-    if (static_cast<int>(fixed_sorted.size()) > cfg.max_fixed_keyframes) fixed_sorted.resize(static_cast<std::size_t>(cfg.max_fixed_keyframes));
+    std::stable_sort(fixed_sorted.begin(), fixed_sorted.end(),
+                     [](const auto& a, const auto& b) { return a.second > b.second; });
+    if (static_cast<int>(fixed_sorted.size()) > cfg.max_fixed_keyframes)
+      fixed_sorted.resize(static_cast<std::size_t>(cfg.max_fixed_keyframes));
     std::vector<int> fixed_ids;
     for (const auto& [id, c] : fixed_sorted) fixed_ids.push_back(id);
     launch_ba(local, fixed_ids, pts, cfg.mapping_thread, cfg.local_ba);
@@ -914,7 +953,8 @@ struct SlamFrontend::Impl {
       if (job.kf_ids[i] == 0) fixed[i] = 1;
     }
     if (std::none_of(fixed.begin(), fixed.end(), [](std::uint8_t v) { return v != 0; })) {
-      const auto oldest = std::min_element(job.kf_ids.begin(), job.kf_ids.end()) - job.kf_ids.begin();
+      const auto oldest =
+          std::min_element(job.kf_ids.begin(), job.kf_ids.end()) - job.kf_ids.begin();
       fixed[static_cast<std::size_t>(oldest)] = 1;
     }
     if (job.kf_ids.size() < 2) return;
@@ -930,7 +970,8 @@ struct SlamFrontend::Impl {
         BaObservation o;
         o.keyframe = it->second;
         o.point = static_cast<int>(j);
-        o.obs = observation(keyframes[static_cast<std::size_t>(kf)].data, static_cast<std::size_t>(idx));
+        o.obs = observation(keyframes[static_cast<std::size_t>(kf)].data,
+                            static_cast<std::size_t>(idx));
         job.observations.push_back(o);
       }
     }
@@ -956,15 +997,18 @@ struct SlamFrontend::Impl {
     ++ba_count;
     ba_ms += ms;
     const BaJob& job = *ba_job;
-    for (std::size_t i = 0; i < job.kf_ids.size(); ++i) keyframes[static_cast<std::size_t>(job.kf_ids[i])].T_cw = r.poses[i];
+    for (std::size_t i = 0; i < job.kf_ids.size(); ++i)
+      keyframes[static_cast<std::size_t>(job.kf_ids[i])].T_cw = r.poses[i];
     for (std::size_t i = 0; i < job.observations.size(); ++i) {
       if (r.outlier[i] == 0) continue;
       const int pid = job.point_ids[static_cast<std::size_t>(job.observations[i].point)];
       const int kf = job.kf_ids[static_cast<std::size_t>(job.observations[i].keyframe)];
       MapPoint& p = points[static_cast<std::size_t>(pid)];
-      const auto it = std::find_if(p.obs.begin(), p.obs.end(), [&](const auto& o) { return o.first == kf; });
+      const auto it =
+          std::find_if(p.obs.begin(), p.obs.end(), [&](const auto& o) { return o.first == kf; });
       if (it == p.obs.end()) continue;
-      keyframes[static_cast<std::size_t>(kf)].data.points[static_cast<std::size_t>(it->second)] = -1;
+      keyframes[static_cast<std::size_t>(kf)].data.points[static_cast<std::size_t>(it->second)] =
+          -1;
       p.obs.erase(it);
       if (p.obs.empty()) p.bad = true;
     }
@@ -972,7 +1016,9 @@ struct SlamFrontend::Impl {
       MapPoint& p = points[static_cast<std::size_t>(job.point_ids[j])];
       if (p.bad) continue;
       p.pos = r.points[j];
-      if (std::none_of(p.obs.begin(), p.obs.end(), [&](const auto& o) { return o.first == p.ref_kf; })) p.ref_kf = p.obs.front().first;
+      if (std::none_of(p.obs.begin(), p.obs.end(),
+                       [&](const auto& o) { return o.first == p.ref_kf; }))
+        p.ref_kf = p.obs.front().first;
       update_point_geometry(p);
     }
     ba_job.reset();
@@ -1023,7 +1069,8 @@ struct SlamFrontend::Impl {
       if (!r.tracked || r.keyframe || r.ref_kf < 0) continue;
       const Eigen::Isometry3d T_cw = r.T_c_ref * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw;
       for (const auto& [pid, o] : r.matches) {
-        if (!points[static_cast<std::size_t>(pid)].bad) per_point[static_cast<std::size_t>(pid)].push_back({T_cw, o});
+        if (!points[static_cast<std::size_t>(pid)].bad)
+          per_point[static_cast<std::size_t>(pid)].push_back({T_cw, o});
       }
     }
     for (std::size_t j = 0; j < points.size(); ++j) {
@@ -1039,7 +1086,8 @@ struct SlamFrontend::Impl {
           double jp[9];
           const int d = reprojection_residual(k, ob.T_cw, x, ob.o, res, nullptr, jp);
           if (d == 0) continue;
-          const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> J(jp, d, 3);
+          const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> J(jp, d,
+                                                                                              3);
           const Eigen::Map<const Eigen::VectorXd> e(res, d);
           const double chi2 = e.squaredNorm();
           const double th = d == 3 ? cfg.local_ba.chi2_stereo : cfg.local_ba.chi2_mono;
@@ -1069,10 +1117,12 @@ struct SlamFrontend::Impl {
     const auto t0 = Clock::now();
     const double c0 = thread_cpu_ms();
     const FrameInput& in = pf.input;
-    DS3D_CHECK(std::isfinite(in.timestamp), "ds3d::slam::SlamFrontend::track: timestamp must be finite (got ",
-               in.timestamp, ")");
-    DS3D_CHECK(in.timestamp >= last_timestamp, "ds3d::slam::SlamFrontend::track: time went backwards: frame ",
-               in.index, " has timestamp ", in.timestamp, " < previous ", last_timestamp);
+    DS3D_CHECK(std::isfinite(in.timestamp),
+               "ds3d::slam::SlamFrontend::track: timestamp must be finite (got ", in.timestamp,
+               ")");
+    DS3D_CHECK(in.timestamp >= last_timestamp,
+               "ds3d::slam::SlamFrontend::track: time went backwards: frame ", in.index,
+               " has timestamp ", in.timestamp, " < previous ", last_timestamp);
     last_timestamp = in.timestamp;
     apply_ba_if_due(false);
 
@@ -1128,7 +1178,8 @@ struct SlamFrontend::Impl {
       if (ok) {
         just_relocalized = relocalized;
         inliers = track_local_map(f, T_cw);
-        ok = inliers >= (relocalized ? std::max(50, cfg.min_tracked_inliers) : cfg.min_tracked_inliers);
+        ok = inliers >=
+             (relocalized ? std::max(50, cfg.min_tracked_inliers) : cfg.min_tracked_inliers);
       }
       if (ok) {
         res.state = relocalized ? TrackState::kRelocalized : TrackState::kTracking;
@@ -1169,8 +1220,10 @@ struct SlamFrontend::Impl {
     }
     res.T_world_cam = T_cw.inverse();
 
-    FrameRecord rec{in.index, in.timestamp, ref_kf, Eigen::Isometry3d::Identity(), T_cw, res.tracked, false, {}};
-    if (ref_kf >= 0) rec.T_c_ref = T_cw * keyframes[static_cast<std::size_t>(ref_kf)].T_cw.inverse();
+    FrameRecord rec{in.index, in.timestamp, ref_kf, Eigen::Isometry3d::Identity(),
+                    T_cw,     res.tracked,  false,  {}};
+    if (ref_kf >= 0)
+      rec.T_c_ref = T_cw * keyframes[static_cast<std::size_t>(ref_kf)].T_cw.inverse();
     records.push_back(rec);
 
     if (cfg.refine_frame_poses && res.tracked && !new_kf) {
@@ -1218,14 +1271,17 @@ void SlamFrontend::detect_dynamic(PreparedFrame& frame) {
 
 void SlamFrontend::filter_dynamic(PreparedFrame& frame) {
   const auto t0 = Clock::now();
-  frame.dynamic = impl_->masker->mask(frame.input, impl_->cfg.camera, frame.features, frame.objects);
-  DS3D_CHECK(frame.dynamic.size() == frame.features.size(), "ds3d::slam::SlamFrontend: dynamic filter '",
-             impl_->masker->name(), "' returned ", frame.dynamic.size(), " flags for ",
-             frame.features.size(), " keypoints");
+  frame.dynamic =
+      impl_->masker->mask(frame.input, impl_->cfg.camera, frame.features, frame.objects);
+  DS3D_CHECK(frame.dynamic.size() == frame.features.size(),
+             "ds3d::slam::SlamFrontend: dynamic filter '", impl_->masker->name(), "' returned ",
+             frame.dynamic.size(), " flags for ", frame.features.size(), " keypoints");
   frame.times.filter_ms = ms_since(t0);
 }
 
-TrackResult SlamFrontend::track_prepared(PreparedFrame frame) { return impl_->track(std::move(frame)); }
+TrackResult SlamFrontend::track_prepared(PreparedFrame frame) {
+  return impl_->track(std::move(frame));
+}
 
 TrackResult SlamFrontend::track(const cv::Mat& rgb, const cv::Mat& depth, double timestamp) {
   FrameInput in;
@@ -1307,7 +1363,8 @@ std::vector<FramePose> SlamFrontend::trajectory() const {
     p.timestamp = r.timestamp;
     p.tracked = r.tracked;
     const Eigen::Isometry3d T_cw =
-        r.ref_kf >= 0 ? Eigen::Isometry3d(r.T_c_ref * impl_->keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw)
+        r.ref_kf >= 0 ? Eigen::Isometry3d(r.T_c_ref *
+                                          impl_->keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw)
                       : r.T_cw_online;
     p.T_world_cam = T_cw.inverse();
     out.push_back(p);
@@ -1317,7 +1374,8 @@ std::vector<FramePose> SlamFrontend::trajectory() const {
 
 std::vector<FramePose> SlamFrontend::keyframe_trajectory() const {
   std::vector<FramePose> out;
-  for (const auto& kf : impl_->keyframes) out.push_back({kf.frame_index, kf.timestamp, kf.T_cw.inverse(), true});
+  for (const auto& kf : impl_->keyframes)
+    out.push_back({kf.frame_index, kf.timestamp, kf.T_cw.inverse(), true});
   return out;
 }
 
@@ -1327,18 +1385,22 @@ Points3f SlamFrontend::map_points() const {
     if (!p.bad && p.pos.allFinite()) good.push_back(&p);
   }
   Points3f out(static_cast<Eigen::Index>(good.size()), 3);
-  for (std::size_t i = 0; i < good.size(); ++i) out.row(static_cast<Eigen::Index>(i)) = good[i]->pos.cast<float>().transpose();
+  for (std::size_t i = 0; i < good.size(); ++i)
+    out.row(static_cast<Eigen::Index>(i)) = good[i]->pos.cast<float>().transpose();
   return out;
 }
 
 void SlamFrontend::write_map_ply(const std::filesystem::path& path) const {
   const Points3f pts = map_points();
   std::ofstream out(path);
-  DS3D_CHECK_AS(IoError, out.good(), "ds3d::slam::SlamFrontend::write_map_ply: cannot open '", path.string(), "'");
+  DS3D_CHECK_AS(IoError, out.good(), "ds3d::slam::SlamFrontend::write_map_ply: cannot open '",
+                path.string(), "'");
   out << "ply\nformat ascii 1.0\nelement vertex " << pts.rows()
       << "\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
-  for (Eigen::Index i = 0; i < pts.rows(); ++i) out << pts(i, 0) << ' ' << pts(i, 1) << ' ' << pts(i, 2) << '\n';
-  DS3D_CHECK_AS(IoError, out.good(), "ds3d::slam::SlamFrontend::write_map_ply: write failed for '", path.string(), "'");
+  for (Eigen::Index i = 0; i < pts.rows(); ++i)
+    out << pts(i, 0) << ' ' << pts(i, 1) << ' ' << pts(i, 2) << '\n';
+  DS3D_CHECK_AS(IoError, out.good(), "ds3d::slam::SlamFrontend::write_map_ply: write failed for '",
+                path.string(), "'");
 }
 
 const FrontendConfig& SlamFrontend::config() const noexcept { return impl_->cfg; }

@@ -37,14 +37,14 @@ using RowVec = Eigen::RowVectorXf;
 namespace {
 
 struct Linear {
-  Mat w;    // [out, in]
+  Mat w;     // [out, in]
   RowVec b;  // [out]
 };
 struct Norm {
   RowVec g, b;
 };
 struct Attention {
-  Mat w_in;   // [3d, d]: q, k, v rows
+  Mat w_in;  // [3d, d]: q, k, v rows
   RowVec b_in;
   Linear out;
 };
@@ -107,7 +107,7 @@ Mat attention(const Mat& q_in, const Mat& k_in, const Mat& v_in, const Attention
   Mat q;
   Mat k;
   Mat v;
-  if (&q_in == &k_in && &k_in == &v_in) {  // self-attention on one input: one [n, 3d] GEMM
+  if (&q_in == &k_in && &k_in == &v_in) {           // self-attention on one input: one [n, 3d] GEMM
     Mat qkv = broadcast_rows(a.b_in, q_in.rows());  // [n, 3d]
     qkv.noalias() += q_in * a.w_in.transpose();
     q = qkv.leftCols(d);
@@ -123,8 +123,8 @@ Mat attention(const Mat& q_in, const Mat& k_in, const Mat& v_in, const Attention
   }
   q *= 1.0F / std::sqrt(static_cast<float>(hd));
   Mat o(q.rows(), d);
-  detail::parallel_chunks(static_cast<std::size_t>(heads), static_cast<std::size_t>(heads), num_threads,
-                          [&](std::size_t begin, std::size_t end, std::size_t) {
+  detail::parallel_chunks(static_cast<std::size_t>(heads), static_cast<std::size_t>(heads),
+                          num_threads, [&](std::size_t begin, std::size_t end, std::size_t) {
                             Mat s(q.rows(), k.rows());  // [nq, nk]
                             Vec inv(q.rows());
                             for (std::size_t h = begin; h < end; ++h) {
@@ -147,7 +147,7 @@ float sigmoid(float x) { return 1.0F / (1.0F + std::exp(-x)); }
 // FPS of k indices over rows of p (spec §3.2); float32 expressions identical to ops.py.
 // Non-candidates (padding) carry distance -1 forever: min(-1, d2) = -1 never beats best_d = -1.
 DS3D_NO_FP_CONTRACT std::vector<std::int32_t> farthest_point_sample(const Mat& p, Eigen::Index k,
-                                                                   float padding_norm2) {
+                                                                    float padding_norm2) {
   const Eigen::Index n = p.rows();
   std::vector<std::int32_t> out(static_cast<std::size_t>(k), 0);
   if (n == 0 || k == 0) return out;
@@ -238,7 +238,8 @@ DS3D_NO_FP_CONTRACT Mat ball_group(const Mat& p, const Mat& centres, float r, Ei
     const auto kx = static_cast<std::size_t>(cell_of(p(j, 0), 0));
     const auto ky = static_cast<std::size_t>(cell_of(p(j, 1), 1));
     const auto kz = static_cast<std::size_t>(cell_of(p(j, 2), 2));
-    const std::size_t k = (kx * static_cast<std::size_t>(dims[1]) + ky) * static_cast<std::size_t>(dims[2]) + kz;
+    const std::size_t k =
+        (kx * static_cast<std::size_t>(dims[1]) + ky) * static_cast<std::size_t>(dims[2]) + kz;
     key[static_cast<std::size_t>(j)] = static_cast<std::int32_t>(k);
     ++start[k + 1];
   }
@@ -247,7 +248,8 @@ DS3D_NO_FP_CONTRACT Mat ball_group(const Mat& p, const Mat& centres, float r, Ei
   {
     std::vector<std::int32_t> fill(start.begin(), start.end() - 1);
     for (Eigen::Index j = 0; j < n; ++j) {
-      order[static_cast<std::size_t>(fill[static_cast<std::size_t>(key[static_cast<std::size_t>(j)])]++)] =
+      order[static_cast<std::size_t>(
+          fill[static_cast<std::size_t>(key[static_cast<std::size_t>(j)])]++)] =
           static_cast<std::int32_t>(j);
     }
   }
@@ -260,7 +262,8 @@ DS3D_NO_FP_CONTRACT Mat ball_group(const Mat& p, const Mat& centres, float r, Ei
       for (int y = std::max(gy - 1, 0); y <= std::min(gy + 1, dims[1] - 1); ++y) {
         for (int z = std::max(gz - 1, 0); z <= std::min(gz + 1, dims[2] - 1); ++z) {
           const std::size_t k = (static_cast<std::size_t>(x) * static_cast<std::size_t>(dims[1]) +
-                                 static_cast<std::size_t>(y)) * static_cast<std::size_t>(dims[2]) +
+                                 static_cast<std::size_t>(y)) *
+                                    static_cast<std::size_t>(dims[2]) +
                                 static_cast<std::size_t>(z);
           for (std::int32_t q = start[k]; q < start[k + 1]; ++q) {
             const std::int32_t j = order[static_cast<std::size_t>(q)];
@@ -307,7 +310,8 @@ DS3D_NO_FP_CONTRACT void three_nn(const Mat& tokens, float x, float y, float z, 
 
 int get_int(const detail::JsonValue& o, const char* key) {
   const auto v = o.at(key).as_int();
-  DS3D_CHECK_AS(IoError, v >= -2147483647 && v <= 2147483647, "config key '", key, "' out of range");
+  DS3D_CHECK_AS(IoError, v >= -2147483647 && v <= 2147483647, "config key '", key,
+                "' out of range");
   return static_cast<int>(v);
 }
 float get_float(const detail::JsonValue& o, const char* key) {
@@ -326,9 +330,9 @@ struct SparseDetector::Weights {
   Linear qproj0, qproj1;
   std::vector<DecLayer> dec;
   Norm dec_norm;
-  Linear head0_all;              // the 5 heads' first layers stacked: [5 h, d]
-  std::array<Linear, 5> head1;   // [h, h]
-  std::array<Linear, 5> head2;   // [out, h]
+  Linear head0_all;             // the 5 heads' first layers stacked: [5 h, d]
+  std::array<Linear, 5> head1;  // [h, h]
+  std::array<Linear, 5> head2;  // [out, h]
   Linear part0, part1;
 };
 
@@ -371,7 +375,8 @@ DetectorConfig DetectorConfig::from_json(std::string_view json) {
     c.min_size_extent = get_float(o, "min_size_extent");
     c.fps_padding_norm2 = get_float(o, "fps_padding_norm2");
     DS3D_CHECK_AS(IoError, o.at("bn_folded").as_bool(), "bn_folded must be true");
-    DS3D_CHECK_AS(IoError, o.at("in_proj").as_string() == "packed_qkv", "in_proj must be 'packed_qkv'");
+    DS3D_CHECK_AS(IoError, o.at("in_proj").as_string() == "packed_qkv",
+                  "in_proj must be 'packed_qkv'");
   } catch (const IoError& e) {
     throw IoError(std::string("ds3d::DetectorConfig::from_json: ") + e.what());
   }
@@ -397,7 +402,8 @@ void DetectorConfig::validate() const {
   check(dec_ffn > 0 && dec_ffn <= kMax, "dec_ffn", dec_ffn);
   check(num_queries > 0 && num_queries <= kMax, "num_queries", num_queries);
   check(num_classes > 0 && num_classes <= 4096, "num_classes", num_classes);
-  check(class_names.size() == static_cast<std::size_t>(num_classes), "class_names size", class_names.size());
+  check(class_names.size() == static_cast<std::size_t>(num_classes), "class_names size",
+        class_names.size());
   check(num_angle_bins > 0 && num_angle_bins <= 360, "num_angle_bins", num_angle_bins);
   check(head_hidden > 0 && head_hidden <= kMax, "head_hidden", head_hidden);
   check(part_hidden > 0 && part_hidden <= kMax, "part_hidden", part_hidden);
@@ -428,24 +434,31 @@ std::string DetectorConfig::to_json() const {
   }
   names += "]";
   auto num = [](float v) { return detail::json_number(static_cast<double>(v)); };
-  return "{\"profile\":\"" + detail::json_escape(profile) + "\",\"num_centres\":" + std::to_string(num_centres) +
-         ",\"sa_radius\":" + num(sa_radius) + ",\"sa_samples\":" + std::to_string(sa_samples) +
-         ",\"sa_mlp\":" + ints(sa_mlp) + ",\"d_model\":" + std::to_string(d_model) +
-         ",\"num_heads\":" + std::to_string(num_heads) + ",\"enc_layers\":" + std::to_string(enc_layers) +
-         ",\"enc_ffn\":" + std::to_string(enc_ffn) + ",\"dec_layers\":" + std::to_string(dec_layers) +
-         ",\"dec_ffn\":" + std::to_string(dec_ffn) + ",\"num_queries\":" + std::to_string(num_queries) +
+  return "{\"profile\":\"" + detail::json_escape(profile) +
+         "\",\"num_centres\":" + std::to_string(num_centres) + ",\"sa_radius\":" + num(sa_radius) +
+         ",\"sa_samples\":" + std::to_string(sa_samples) + ",\"sa_mlp\":" + ints(sa_mlp) +
+         ",\"d_model\":" + std::to_string(d_model) + ",\"num_heads\":" + std::to_string(num_heads) +
+         ",\"enc_layers\":" + std::to_string(enc_layers) +
+         ",\"enc_ffn\":" + std::to_string(enc_ffn) +
+         ",\"dec_layers\":" + std::to_string(dec_layers) +
+         ",\"dec_ffn\":" + std::to_string(dec_ffn) +
+         ",\"num_queries\":" + std::to_string(num_queries) +
          ",\"num_classes\":" + std::to_string(num_classes) + ",\"class_names\":" + names +
-         ",\"num_angle_bins\":" + std::to_string(num_angle_bins) + ",\"head_hidden\":" + std::to_string(head_hidden) +
-         ",\"part_hidden\":" + std::to_string(part_hidden) + ",\"layer_norm_eps\":" + num(layer_norm_eps) +
-         ",\"min_points_in_box\":" + std::to_string(min_points_in_box) + ",\"nms_iou\":" + num(nms_iou) +
-         ",\"score_threshold\":" + num(score_threshold) + ",\"min_size_extent\":" + num(min_size_extent) +
+         ",\"num_angle_bins\":" + std::to_string(num_angle_bins) +
+         ",\"head_hidden\":" + std::to_string(head_hidden) +
+         ",\"part_hidden\":" + std::to_string(part_hidden) +
+         ",\"layer_norm_eps\":" + num(layer_norm_eps) +
+         ",\"min_points_in_box\":" + std::to_string(min_points_in_box) +
+         ",\"nms_iou\":" + num(nms_iou) + ",\"score_threshold\":" + num(score_threshold) +
+         ",\"min_size_extent\":" + num(min_size_extent) +
          ",\"fps_padding_norm2\":" + num(fps_padding_norm2) +
          ",\"bn_folded\":true,\"in_proj\":\"packed_qkv\",\"format_version\":1}";
 }
 
 DetectorConfig DetectorConfig::make_profile(std::string_view name) {
   DS3D_CHECK(name == "fast" || name == "quality",
-             "ds3d::DetectorConfig::make_profile: name must be 'fast' or 'quality' (got '", name, "')");
+             "ds3d::DetectorConfig::make_profile: name must be 'fast' or 'quality' (got '", name,
+             "')");
   DetectorConfig c;
   c.profile = std::string(name);
   c.num_centres = name == "fast" ? 384 : 512;
@@ -521,8 +534,8 @@ SparseDetector SparseDetector::from_weights(const WeightsFile& f) {
   DS3D_CHECK_AS(IoError, fmt == "ds3d-htx", "ds3d::SparseDetector::load: ", f.source(),
                 ": metadata format is '", fmt, "', expected 'ds3d-htx'");
   const std::string& ver = f.metadata("version");
-  DS3D_CHECK_AS(IoError, ver == "1", "ds3d::SparseDetector::load: ", f.source(), ": unsupported version '",
-                ver, "'");
+  DS3D_CHECK_AS(IoError, ver == "1", "ds3d::SparseDetector::load: ", f.source(),
+                ": unsupported version '", ver, "'");
   DetectorConfig c = DetectorConfig::from_json(f.metadata("config"));
   auto w = std::make_shared<Weights>();
   std::vector<std::string> used;
@@ -561,7 +574,8 @@ SparseDetector SparseDetector::from_weights(const WeightsFile& f) {
   for (int i = 0; i < c.enc_layers; ++i) {
     const std::string p = "encoder.layers." + std::to_string(i);
     w->enc.push_back({attn(p + ".self_attn"), lin(p + ".linear1", c.enc_ffn, d),
-                      lin(p + ".linear2", d, c.enc_ffn), norm(p + ".norm1", d), norm(p + ".norm2", d)});
+                      lin(p + ".linear2", d, c.enc_ffn), norm(p + ".norm1", d),
+                      norm(p + ".norm2", d)});
   }
   w->proj0 = lin("encoder_to_decoder_projection.0", d, d);
   w->proj1 = lin("encoder_to_decoder_projection.1", d, d);
@@ -570,9 +584,9 @@ SparseDetector SparseDetector::from_weights(const WeightsFile& f) {
   w->qproj1 = lin("query_projection.1", d, d);
   for (int i = 0; i < c.dec_layers; ++i) {
     const std::string p = "decoder.layers." + std::to_string(i);
-    w->dec.push_back({attn(p + ".self_attn"), attn(p + ".multihead_attn"), lin(p + ".linear1", c.dec_ffn, d),
-                      lin(p + ".linear2", d, c.dec_ffn), norm(p + ".norm1", d), norm(p + ".norm2", d),
-                      norm(p + ".norm3", d)});
+    w->dec.push_back({attn(p + ".self_attn"), attn(p + ".multihead_attn"),
+                      lin(p + ".linear1", c.dec_ffn, d), lin(p + ".linear2", d, c.dec_ffn),
+                      norm(p + ".norm1", d), norm(p + ".norm2", d), norm(p + ".norm3", d)});
   }
   w->dec_norm = norm("decoder.norm", d);
   const std::int64_t h = c.head_hidden;
@@ -592,8 +606,8 @@ SparseDetector SparseDetector::from_weights(const WeightsFile& f) {
   // Nothing unexpected may hide in the file.
   std::sort(used.begin(), used.end());
   for (const auto& name : f.names()) {
-    DS3D_CHECK_AS(IoError, std::binary_search(used.begin(), used.end(), name), "ds3d::SparseDetector::load: ",
-                  f.source(), ": unexpected tensor '", name, "'");
+    DS3D_CHECK_AS(IoError, std::binary_search(used.begin(), used.end(), name),
+                  "ds3d::SparseDetector::load: ", f.source(), ": unexpected tensor '", name, "'");
   }
   return SparseDetector(std::move(c), std::move(w));
 }
@@ -602,7 +616,8 @@ std::vector<Box3> SparseDetector::detect(Eigen::Ref<const Points3f> xyz, int num
   return run(xyz, DetectOptions{.num_threads = num_threads, .part_logits = false}).boxes;
 }
 
-DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectOptions& options) const {
+DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz,
+                                   const DetectOptions& options) const {
   const int threads = detail::resolve_num_threads(options.num_threads, "ds3d::SparseDetector::run");
   const Eigen::Index n = xyz.rows();
   for (Eigen::Index i = 0; i < n; ++i) {
@@ -623,9 +638,11 @@ DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectO
   const Eigen::Index t = std::min<Eigen::Index>(c.num_centres, n);
   out.centre_indices = farthest_point_sample(p, t, c.fps_padding_norm2);
   Mat centres(t, 3);  // [t, 3]
-  for (Eigen::Index i = 0; i < t; ++i) centres.row(i) = p.row(out.centre_indices[static_cast<std::size_t>(i)]);
+  for (Eigen::Index i = 0; i < t; ++i)
+    centres.row(i) = p.row(out.centre_indices[static_cast<std::size_t>(i)]);
   std::vector<Eigen::Index> group_begin;
-  const Mat grouped = ball_group(p, centres, c.sa_radius, c.sa_samples, group_begin);  // [samples, 3]
+  const Mat grouped =
+      ball_group(p, centres, c.sa_radius, c.sa_samples, group_begin);  // [samples, 3]
   const Eigen::Index d = c.d_model;
   Mat feats(t, d);  // [t, d]
   // Shared MLP + max-pool in chunks of centres, so the [samples, 128] activations stay in cache.
@@ -637,7 +654,9 @@ DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectO
     for (const auto& l : w.sa_mlp) x = linear_relu(x, l);  // [chunk samples, d]
     for (Eigen::Index i = c0; i < c1; ++i) {
       const Eigen::Index b = group_begin[static_cast<std::size_t>(i)] - r0;
-      feats.row(i) = x.middleRows(b, group_begin[static_cast<std::size_t>(i) + 1] - r0 - b).colwise().maxCoeff();
+      feats.row(i) = x.middleRows(b, group_begin[static_cast<std::size_t>(i) + 1] - r0 - b)
+                         .colwise()
+                         .maxCoeff();
     }
   }
 
@@ -655,12 +674,14 @@ DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectO
   const Eigen::Index nq = std::min<Eigen::Index>(c.num_queries, t);
   out.query_indices = farthest_point_sample(centres, nq, c.fps_padding_norm2);
   Mat qxyz(nq, 3);  // [nq, 3]
-  for (Eigen::Index i = 0; i < nq; ++i) qxyz.row(i) = centres.row(out.query_indices[static_cast<std::size_t>(i)]);
+  for (Eigen::Index i = 0; i < nq; ++i)
+    qxyz.row(i) = centres.row(out.query_indices[static_cast<std::size_t>(i)]);
   const RowVec pe_extent = extent.cwiseMax(1e-6F);
   auto fourier = [&](const Mat& pts) {  // [m, 3] -> [m, d]
     Mat xh(pts.rows(), 3);
     for (Eigen::Index i = 0; i < pts.rows(); ++i) {
-      xh.row(i) = ((pts.row(i) - scene_min).array() / pe_extent.array()) * static_cast<float>(2.0 * std::numbers::pi);
+      xh.row(i) = ((pts.row(i) - scene_min).array() / pe_extent.array()) *
+                  static_cast<float>(2.0 * std::numbers::pi);
     }
     const Mat u = xh * w.gauss_b;  // [m, d/2]
     Mat e(pts.rows(), d);
@@ -723,13 +744,15 @@ DetectorOutput SparseDetector::run(Eigen::Ref<const Points3f> xyz, const DetectO
     Eigen::Index label = 0;
     out.class_prob.row(q).maxCoeff(&label);
     b.label = static_cast<std::int32_t>(label);
-    b.score = static_cast<float>(static_cast<double>(prob[label]) * static_cast<double>(b.objectness));
+    b.score =
+        static_cast<float>(static_cast<double>(prob[label]) * static_cast<double>(b.objectness));
   }
   for (const std::size_t i : postprocess(xyz, out.proposals)) out.boxes.push_back(out.proposals[i]);
 
   // ---- part head (spec §6.3 option A) ----------------------------------------------------------
   if (options.part_logits) {
-    // Linear in the interpolated features, so project tokens first: G = enc W0a^T  [t, part_hidden].
+    // Linear in the interpolated features, so project tokens first: G = enc W0a^T  [t,
+    // part_hidden].
     const Mat g = enc * w.part0.w.leftCols(d).transpose();
     const Mat wxyz = w.part0.w.rightCols(3);  // [part_hidden, 3]
     out.part_logits.resize(n, 4);
@@ -788,12 +811,14 @@ std::vector<std::size_t> SparseDetector::postprocess(Eigen::Ref<const Points3f> 
   }
   std::vector<std::size_t> cand;
   for (std::size_t b = 0; b < q; ++b) {
-    if (keep[b] && static_cast<double>(proposals[b].objectness) > static_cast<double>(config_.score_threshold)) {
+    if (keep[b] && static_cast<double>(proposals[b].objectness) >
+                       static_cast<double>(config_.score_threshold)) {
       cand.push_back(b);
     }
   }
-  std::stable_sort(cand.begin(), cand.end(),
-                   [&](std::size_t a, std::size_t b) { return proposals[a].objectness > proposals[b].objectness; });
+  std::stable_sort(cand.begin(), cand.end(), [&](std::size_t a, std::size_t b) {
+    return proposals[a].objectness > proposals[b].objectness;
+  });
   std::vector<std::size_t> kept;
   for (const std::size_t i : cand) {
     bool suppressed = false;
@@ -808,7 +833,6 @@ std::vector<std::size_t> SparseDetector::postprocess(Eigen::Ref<const Points3f> 
   }
   return kept;
 }
-
 
 // ---- detector input (htx spec §6.1) -------------------------------------------------------
 

@@ -624,19 +624,19 @@ struct SyntheticScene::Impl {
     std::uniform_real_distribution<double> u01(0, 1);
     const auto uni = [&](double a, double b) { return a + (b - a) * u01(rng); };
     const auto box = [](Mesh& m, double x0, double y0, double z0, double x1, double y1, double z1) {
-      add_box(m, Eigen::Vector3f(static_cast<float>(x0), static_cast<float>(y0),
-                                 static_cast<float>(z0)),
-              Eigen::Vector3f(static_cast<float>(x1), static_cast<float>(y1),
-                              static_cast<float>(z1)),
-              150.0F);
+      add_box(
+          m,
+          Eigen::Vector3f(static_cast<float>(x0), static_cast<float>(y0), static_cast<float>(z0)),
+          Eigen::Vector3f(static_cast<float>(x1), static_cast<float>(y1), static_cast<float>(z1)),
+          150.0F);
     };
     std::vector<std::pair<Eigen::Vector2d, double>> placed;  // centre, radius
     for (int f = 0; f < opt.extra_furniture; ++f) {
       const int kind = static_cast<int>(u01(rng) * 3);  // 0 chair, 1 table, 2 floor lamp
       Mesh m;  // built around the origin, then turned and moved
       m.material = static_cast<int>(textures.size());
-      textures.push_back(make_texture(
-          rng, cv::Scalar(uni(40, 210), uni(40, 210), uni(40, 210)), 120, 4, 30));
+      textures.push_back(
+          make_texture(rng, cv::Scalar(uni(40, 210), uni(40, 210), uni(40, 210)), 120, 4, 30));
       double radius = 0;
       if (kind == 0) {
         const double w = uni(0.40, 0.50);
@@ -678,7 +678,8 @@ struct SyntheticScene::Impl {
       bool found = false;
       Eigen::Vector2d c;
       for (int tries = 0; tries < 50 && !found; ++tries) {
-        c = Eigen::Vector2d(uni(1.2, room_x - 0.3 - radius), uni(0.3 + radius, room_y - 0.3 - radius));
+        c = Eigen::Vector2d(uni(1.2, room_x - 0.3 - radius),
+                            uni(0.3 + radius, room_y - 0.3 - radius));
         found = distance_to_humans(c) > 0.5 + radius;
         for (const auto& [q, r] : placed) found = found && (c - q).norm() > r + radius + 0.2;
       }

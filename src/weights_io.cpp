@@ -27,11 +27,11 @@ struct DTypeInfo {
   DType type;
   std::size_t size;
 };
-constexpr DTypeInfo kDTypes[] = {
-    {"F32", DType::kF32, 4}, {"F16", DType::kF16, 2}, {"BF16", DType::kBF16, 2},
-    {"F64", DType::kF64, 8}, {"I64", DType::kI64, 8}, {"I32", DType::kI32, 4},
-    {"I16", DType::kI16, 2}, {"I8", DType::kI8, 1},   {"U8", DType::kU8, 1},
-    {"BOOL", DType::kBool, 1}};
+constexpr DTypeInfo kDTypes[] = {{"F32", DType::kF32, 4},   {"F16", DType::kF16, 2},
+                                 {"BF16", DType::kBF16, 2}, {"F64", DType::kF64, 8},
+                                 {"I64", DType::kI64, 8},   {"I32", DType::kI32, 4},
+                                 {"I16", DType::kI16, 2},   {"I8", DType::kI8, 1},
+                                 {"U8", DType::kU8, 1},     {"BOOL", DType::kBool, 1}};
 
 std::size_t dtype_size(DType t) {
   for (const auto& d : kDTypes) {
@@ -81,7 +81,9 @@ WeightsFile WeightsFile::parse(std::string bytes, std::string source) {
   w.bytes_ = std::move(bytes);
   const std::string& src = w.source_;
   const std::size_t file_size = w.bytes_.size();
-  if (file_size < 8) fail(src, detail::concat("file has ", file_size, " bytes, fewer than the 8-byte header length"));
+  if (file_size < 8)
+    fail(src,
+         detail::concat("file has ", file_size, " bytes, fewer than the 8-byte header length"));
   std::uint64_t n = 0;
   std::memcpy(&n, w.bytes_.data(), 8);
   if (n > kMaxHeader) fail(src, detail::concat("header length ", n, " exceeds the 100 MB limit"));
@@ -113,7 +115,8 @@ WeightsFile WeightsFile::parse(std::string bytes, std::string source) {
     if (!entry.is_object()) fail(src, where + "entry is not an object");
     for (const auto& [k, v] : entry.as_object()) {
       (void)v;
-      if (k != "dtype" && k != "shape" && k != "data_offsets") fail(src, where + "unknown key '" + k + "'");
+      if (k != "dtype" && k != "shape" && k != "data_offsets")
+        fail(src, where + "unknown key '" + k + "'");
     }
     if (!entry.contains("dtype") || !entry.contains("shape") || !entry.contains("data_offsets")) {
       fail(src, where + "needs dtype, shape and data_offsets");
@@ -153,8 +156,9 @@ WeightsFile WeightsFile::parse(std::string bytes, std::string source) {
     const double e = off.at(1).as_number();
     for (const double v : {b, e}) {
       if (!(v >= 0.0) || v != std::floor(v) || v > static_cast<double>(data_size)) {
-        fail(src, where + detail::concat("data_offsets [", b, ", ", e,
-                                         "] out of range of the data buffer (", data_size, " bytes)"));
+        fail(src,
+             where + detail::concat("data_offsets [", b, ", ", e,
+                                    "] out of range of the data buffer (", data_size, " bytes)"));
       }
     }
     if (e < b) fail(src, where + detail::concat("data_offsets end ", e, " < begin ", b));
@@ -163,8 +167,8 @@ WeightsFile WeightsFile::parse(std::string bytes, std::string source) {
     const std::size_t es = dtype_size(t.dtype);
     if (static_cast<std::uint64_t>(numel) > std::numeric_limits<std::uint64_t>::max() / es ||
         static_cast<std::uint64_t>(numel) * es != t.end - t.begin) {
-      fail(src, where + detail::concat("shape ", shape_string(t.shape), " x ", dtype_name(t.dtype), " (",
-                                       es, " bytes) does not match the ", t.end - t.begin,
+      fail(src, where + detail::concat("shape ", shape_string(t.shape), " x ", dtype_name(t.dtype),
+                                       " (", es, " bytes) does not match the ", t.end - t.begin,
                                        " bytes of data_offsets"));
     }
     by_begin.emplace_back(t.begin, name);
@@ -184,8 +188,9 @@ WeightsFile WeightsFile::parse(std::string bytes, std::string source) {
       fail(src, "tensor '" + name + "': data_offsets overlap those of tensor '" + prev + "'");
     }
     if (begin > cursor) {
-      fail(src, "tensor '" + name + detail::concat("': hole in the data buffer before it (bytes ", cursor,
-                                                   "..", begin, ")"));
+      fail(src, "tensor '" + name +
+                    detail::concat("': hole in the data buffer before it (bytes ", cursor, "..",
+                                   begin, ")"));
     }
     cursor = t.end;
     prev = name;
@@ -203,7 +208,9 @@ std::vector<std::string> WeightsFile::names() const {
   return out;
 }
 
-bool WeightsFile::contains(std::string_view name) const { return tensors_.find(name) != tensors_.end(); }
+bool WeightsFile::contains(std::string_view name) const {
+  return tensors_.find(name) != tensors_.end();
+}
 
 const TensorView& WeightsFile::tensor(std::string_view name) const {
   const auto it = tensors_.find(name);
@@ -215,14 +222,17 @@ std::vector<float> WeightsFile::f32(std::string_view name,
                                     const std::vector<std::int64_t>& expected_shape) const {
   const TensorView& t = tensor(name);
   const std::string where = "tensor '" + std::string(name) + "': ";
-  if (t.dtype != DType::kF32) fail(source_, where + "dtype " + dtype_name(t.dtype) + ", expected F32");
+  if (t.dtype != DType::kF32)
+    fail(source_, where + "dtype " + dtype_name(t.dtype) + ", expected F32");
   if (t.shape != expected_shape) {
-    fail(source_, where + "shape " + shape_string(t.shape) + ", expected " + shape_string(expected_shape));
+    fail(source_,
+         where + "shape " + shape_string(t.shape) + ", expected " + shape_string(expected_shape));
   }
   std::vector<float> out(static_cast<std::size_t>(t.numel()));
   if (!out.empty()) std::memcpy(out.data(), bytes_.data() + data_start_ + t.begin, t.end - t.begin);
   for (std::size_t i = 0; i < out.size(); ++i) {
-    if (!std::isfinite(out[i])) fail(source_, where + detail::concat("element ", i, " is not finite"));
+    if (!std::isfinite(out[i]))
+      fail(source_, where + detail::concat("element ", i, " is not finite"));
   }
   return out;
 }
@@ -255,9 +265,11 @@ std::string serialize_safetensors(const std::vector<NamedTensor>& tensors,
   for (const auto& t : tensors) {
     std::int64_t numel = 1;
     for (const auto s : t.shape) numel *= s;
-    DS3D_CHECK(numel >= 0 && static_cast<std::size_t>(numel) == t.data.size(), "ds3d::serialize_safetensors: tensor '",
-               t.name, "' has ", t.data.size(), " values for shape ", shape_string(t.shape));
-    DS3D_CHECK(seen.emplace(t.name, 0).second, "ds3d::serialize_safetensors: duplicate tensor '", t.name, "'");
+    DS3D_CHECK(numel >= 0 && static_cast<std::size_t>(numel) == t.data.size(),
+               "ds3d::serialize_safetensors: tensor '", t.name, "' has ", t.data.size(),
+               " values for shape ", shape_string(t.shape));
+    DS3D_CHECK(seen.emplace(t.name, 0).second, "ds3d::serialize_safetensors: duplicate tensor '",
+               t.name, "'");
     std::string shape = "[";
     for (std::size_t i = 0; i < t.shape.size(); ++i) {
       if (i) shape += ',';

@@ -571,8 +571,7 @@ TEST(Hdbscan, BoruvkaKnnLaneModesMatchBruteForceBitwise) {
             << "n " << n << " k " << k << " mode " << int(mode);
         for (const int threads : {1, 3}) {
           std::vector<double> core;
-          const auto mst =
-              ds3d::detail::boruvka_kdtree(x.data(), un, 3, k, threads, core, mode);
+          const auto mst = ds3d::detail::boruvka_kdtree(x.data(), un, 3, k, threads, core, mode);
           ASSERT_EQ(core, expect) << "n " << n << " k " << k << " mode " << int(mode);
           ASSERT_EQ(mst.size(), un - 1);
           if (first.empty()) first = mst;

@@ -31,12 +31,13 @@ TEST(PartA2Targets, EmptyInput) {
 
 TEST(PartA2Targets, CentreIsHalfAndAxesFollowTheHeading) {
   // theta = pi/2: the length axis points along -Y (spec §2).
-  const auto b = make_box({1.0F, 2.0F, 0.5F}, {2.0F, 1.0F, 1.0F}, static_cast<float>(std::numbers::pi / 2));
+  const auto b =
+      make_box({1.0F, 2.0F, 0.5F}, {2.0F, 1.0F, 1.0F}, static_cast<float>(std::numbers::pi / 2));
   ds3d::Points3f pts(4, 3);
-  pts << 1.0F, 2.0F, 0.5F,   // centre
-      1.0F, 1.5F, 0.5F,      // 0.5 m along -Y = along the length axis: x_local = +0.5
-      1.25F, 2.0F, 0.5F,     // 0.25 m along +X = local +y
-      1.0F, 2.0F, 0.75F;     // 0.25 m up
+  pts << 1.0F, 2.0F, 0.5F,  // centre
+      1.0F, 1.5F, 0.5F,     // 0.5 m along -Y = along the length axis: x_local = +0.5
+      1.25F, 2.0F, 0.5F,    // 0.25 m along +X = local +y
+      1.0F, 2.0F, 0.75F;    // 0.25 m up
   const auto t = ds3d::part_a2_targets(pts, std::vector<ds3d::Box3>{b});
   ASSERT_EQ(t.label, (std::vector<std::int8_t>{1, 1, 1, 1}));
   EXPECT_TRUE(t.part.row(0).isApprox(Eigen::RowVector3f(0.5F, 0.5F, 0.5F), 1e-6F));
@@ -71,8 +72,9 @@ TEST(PartA2Targets, FirstBoxWinsOnOverlap) {
 
 TEST(PartA2Targets, RejectsBadParams) {
   const ds3d::Points3f pts = ds3d::Points3f::Zero(2, 3);
-  EXPECT_THROW((void)ds3d::part_a2_targets(pts, std::vector<ds3d::Box3>{make_box({0, 0, 0}, {0, 1, 1}, 0)}),
-               ds3d::InvalidArgument);
+  EXPECT_THROW(
+      (void)ds3d::part_a2_targets(pts, std::vector<ds3d::Box3>{make_box({0, 0, 0}, {0, 1, 1}, 0)}),
+      ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::part_a2_targets(
                    pts, std::vector<ds3d::Box3>{make_box({0, 0, 0}, {1, 1, 1}, std::nanf(""))}),
                ds3d::InvalidArgument);
@@ -97,9 +99,11 @@ TEST(PartA2Targets, MatchesBruteForceOnRandomBoxes) {
   ds3d::test::Rng rng(7);
   std::vector<ds3d::Box3> boxes;
   for (int k = 0; k < 5; ++k) {
-    boxes.push_back(make_box(Eigen::Vector3f(static_cast<float>(rng.uniform(-2, 2)), static_cast<float>(rng.uniform(-2, 2)),
+    boxes.push_back(make_box(Eigen::Vector3f(static_cast<float>(rng.uniform(-2, 2)),
+                                             static_cast<float>(rng.uniform(-2, 2)),
                                              static_cast<float>(rng.uniform(0, 1))),
-                             Eigen::Vector3f(static_cast<float>(rng.uniform(0.3, 2)), static_cast<float>(rng.uniform(0.3, 2)),
+                             Eigen::Vector3f(static_cast<float>(rng.uniform(0.3, 2)),
+                                             static_cast<float>(rng.uniform(0.3, 2)),
                                              static_cast<float>(rng.uniform(0.3, 2))),
                              static_cast<float>(rng.uniform(-3.14, 3.14))));
   }
@@ -112,10 +116,13 @@ TEST(PartA2Targets, MatchesBruteForceOnRandomBoxes) {
       const auto& b = boxes[k];
       // Rz(-yaw) maps local to world, so its transpose maps world to local.
       Eigen::Matrix3d rz_minus = Eigen::Matrix3d::Identity();
-      const double c = std::cos(static_cast<double>(b.yaw)), s = std::sin(static_cast<double>(b.yaw));
+      const double c = std::cos(static_cast<double>(b.yaw)),
+                   s = std::sin(static_cast<double>(b.yaw));
       rz_minus << c, s, 0, -s, c, 0, 0, 0, 1;
-      const Eigen::Vector3d l = rz_minus.transpose() * (pts.row(i).transpose().cast<double>() - b.centre.cast<double>());
-      if (std::abs(l.x()) < b.size.x() / 2.0 && std::abs(l.y()) < b.size.y() / 2.0 && std::abs(l.z()) <= b.size.z() / 2.0) {
+      const Eigen::Vector3d l =
+          rz_minus.transpose() * (pts.row(i).transpose().cast<double>() - b.centre.cast<double>());
+      if (std::abs(l.x()) < b.size.x() / 2.0 && std::abs(l.y()) < b.size.y() / 2.0 &&
+          std::abs(l.z()) <= b.size.z() / 2.0) {
         owner = static_cast<int>(k);
         const Eigen::Vector3d expect = l.cwiseQuotient(b.size.cast<double>()).array() + 0.5;
         EXPECT_TRUE(t.part.row(i).transpose().cast<double>().isApprox(expect, 1e-6));

@@ -41,7 +41,8 @@ Window make_window(int keyframes, int points) {
   }
   for (int i = 0; i < keyframes; ++i) {
     for (int j = 0; j < points; ++j) {
-      const Eigen::Vector3d pc = truth[static_cast<std::size_t>(i)] * pts_true[static_cast<std::size_t>(j)];
+      const Eigen::Vector3d pc =
+          truth[static_cast<std::size_t>(i)] * pts_true[static_cast<std::size_t>(j)];
       BaObservation o;
       o.keyframe = i;
       o.point = j;
@@ -58,7 +59,8 @@ Window make_window(int keyframes, int points) {
   w.fixed[0] = 1;
   ds3d::slam::Vector6d delta;
   delta << 0.01, -0.01, 0.005, 0.03, 0.02, -0.02;
-  for (std::size_t i = 1; i < w.init.size(); ++i) w.init[i] = ds3d::slam::pose_plus(truth[i], delta);
+  for (std::size_t i = 1; i < w.init.size(); ++i)
+    w.init[i] = ds3d::slam::pose_plus(truth[i], delta);
   w.points = pts_true;
   for (auto& p : w.points) p += Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()) * 0.02;
   return w;

@@ -3,8 +3,9 @@
 // Per-frame cost of GeometricMotionSource::detect (include/ds3d/geometric_motion.hpp) on a
 // generated walking sequence (ds3d::synth walking_xyz, 640x480, two walkers, 30 frames): one
 // iteration runs a fresh source over the whole sequence, so items/s is frames/s including the
-// first frames (no reference yet); per-frame CPU = CPU time / 30. Args: image_scale x 100 (100 = default, 50 = ORB on a quarter
-// of the pixels), segment_objects (1 = default: grow the pixel mask, 0 = boxes only).
+// first frames (no reference yet); per-frame CPU = CPU time / 30. Args: image_scale x 100 (100 =
+// default, 50 = ORB on a quarter of the pixels), segment_objects (1 = default: grow the pixel mask,
+// 0 = boxes only).
 #include <benchmark/benchmark.h>
 
 #include <opencv2/core/utility.hpp>
@@ -47,7 +48,8 @@ void BM_GeometricMotionDetect(benchmark::State& state) {
   }
   const auto n = static_cast<std::int64_t>(frames().size());
   state.counters["frames_with_objects"] = static_cast<double>(frames_with_objects);
-  state.counters["moving_kp_per_frame"] = static_cast<double>(moving_keypoints) / static_cast<double>(n);
+  state.counters["moving_kp_per_frame"] =
+      static_cast<double>(moving_keypoints) / static_cast<double>(n);
   state.SetItemsProcessed(state.iterations() * n);
 }
 BENCHMARK(BM_GeometricMotionDetect)

@@ -47,7 +47,8 @@ void BM_OptimizePose(benchmark::State& state) {
   for (int i = 0; i < state.range(0); ++i) {
     const Eigen::Vector3d p(rng.uniform(-1.5, 1.5), rng.uniform(-1, 1), rng.uniform(1, 4));
     ds3d::slam::Observation o;
-    o.pixel = {k.fx * p.x() / p.z() + k.cx + rng.normal(), k.fy * p.y() / p.z() + k.cy + rng.normal()};
+    o.pixel = {k.fx * p.x() / p.z() + k.cx + rng.normal(),
+               k.fy * p.y() / p.z() + k.cy + rng.normal()};
     o.has_depth = true;
     o.u_right = o.pixel.x() - k.bf / p.z();
     pts.push_back(p);
@@ -88,7 +89,12 @@ void BM_TrackSequence(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(frames().size()));
 }
-BENCHMARK(BM_TrackSequence)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+BENCHMARK(BM_TrackSequence)
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(2);
 
 // finish() after 30 tracked frames (tracking itself is not timed): arg 0 = global BA only,
 // 1 = + per-frame pose refinement, 2 = + refinement with the default 2 point rounds.

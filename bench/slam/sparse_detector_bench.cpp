@@ -20,10 +20,12 @@
 namespace {
 
 const ds3d::SparseDetector& detector(int profile) {
-  static const ds3d::SparseDetector fast = ds3d::SparseDetector::from_weights(
-      ds3d::WeightsFile::parse(ds3d::test::random_htx_file(ds3d::DetectorConfig::make_profile("fast"), 1)));
-  static const ds3d::SparseDetector quality = ds3d::SparseDetector::from_weights(
-      ds3d::WeightsFile::parse(ds3d::test::random_htx_file(ds3d::DetectorConfig::make_profile("quality"), 1)));
+  static const ds3d::SparseDetector fast =
+      ds3d::SparseDetector::from_weights(ds3d::WeightsFile::parse(
+          ds3d::test::random_htx_file(ds3d::DetectorConfig::make_profile("fast"), 1)));
+  static const ds3d::SparseDetector quality =
+      ds3d::SparseDetector::from_weights(ds3d::WeightsFile::parse(
+          ds3d::test::random_htx_file(ds3d::DetectorConfig::make_profile("quality"), 1)));
   return profile == 0 ? fast : quality;
 }
 
@@ -31,7 +33,8 @@ const ds3d::SparseDetector& detector(int profile) {
 void BM_HtxDetect(benchmark::State& state) {
   const auto& det = detector(static_cast<int>(state.range(0)));
   const auto pts = ds3d::test::htx_scene(4096, 7);
-  const ds3d::DetectOptions opt{.num_threads = static_cast<int>(state.range(1)), .part_logits = state.range(2) != 0};
+  const ds3d::DetectOptions opt{.num_threads = static_cast<int>(state.range(1)),
+                                .part_logits = state.range(2) != 0};
   for (auto _ : state) {
     auto out = det.run(pts, opt);
     benchmark::DoNotOptimize(out.proposals.data());
@@ -63,7 +66,8 @@ void BM_HtxFrame(benchmark::State& state) {
     in.depth = f.depth;
     frames.push_back(in);
   }
-  auto det = std::make_shared<const ds3d::SparseDetector>(detector(static_cast<int>(state.range(0))));
+  auto det =
+      std::make_shared<const ds3d::SparseDetector>(detector(static_cast<int>(state.range(0))));
   ds3d::slam::HtxSource src(det, {.classes = {}});
   double pre_ms = 0;
   double det_ms = 0;
@@ -82,6 +86,11 @@ void BM_HtxFrame(benchmark::State& state) {
   state.counters["cloud_points"] = points / n;
   state.SetLabel(det->config().profile);
 }
-BENCHMARK(BM_HtxFrame)->ArgName("profile")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(1.0);
+BENCHMARK(BM_HtxFrame)
+    ->ArgName("profile")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(1.0);
 
 }  // namespace

@@ -82,7 +82,8 @@ namespace box {
     const double x = kSx[k] * b.size.x() / 2.0;
     const double y = kSy[k] * b.size.y() / 2.0;
     out[static_cast<std::size_t>(k)] =
-        b.centre.cast<double>() + Eigen::Vector3d(c * x + s * y, -s * x + c * y, kSz[k] * b.size.z() / 2.0);
+        b.centre.cast<double>() +
+        Eigen::Vector3d(c * x + s * y, -s * x + c * y, kSz[k] * b.size.z() / 2.0);
   }
   return out;
 }

@@ -15,9 +15,9 @@
 ///     cluster's depth range touches the group's: its near end within the depth gap plus 3σ of
 ///     the sensor noise σ(z) = k·z², Khoshelham & Elberink 2012, of the group's far end, and its
 ///     median within max_object_depth of the group's near end): arms, legs and torso that
-///     HDBSCAN split into several depth groups join their body. The foreground is the shallowest group spanning a
-///     sizeable part of the box height (a detected object fills its box; furniture occluding
-///     part of it does not); its clusters are dynamic; everything else in the box (the
+///     HDBSCAN split into several depth groups join their body. The foreground is the shallowest
+///     group spanning a sizeable part of the box height (a detected object fills its box; furniture
+///     occluding part of it does not); its clusters are dynamic; everything else in the box (the
 ///     background seen around and through the object, occluders in front of it) is kept;
 ///  4. noise points (label −1) are dynamic when their depth lies in the foreground's depth range
 ///     and they lie in its image rectangle (or anywhere in the box when the box has its own

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "ds3d/detections.hpp"
 #include "ds3d/box3.hpp"
+#include "ds3d/detections.hpp"
 #include "ds3d/dynamic_filter.hpp"
 #include "ds3d/preprocess.hpp"
 #include "ds3d/slam_frontend.hpp"
@@ -97,18 +97,18 @@ struct HtxSourceParams {
   /// HtxSourceParams::num_threads.
   PreprocessParams preprocess{};
   DetectorInputParams input{};  ///< points drawn for the detector (seed mixed with frame index)
-  float min_score = 0.3F;       ///< boxes with a lower score p[class]·objectness are dropped, [0, 1]
+  float min_score = 0.3F;  ///< boxes with a lower score p[class]·objectness are dropped, [0, 1]
   /// Class names (from the weights' config) treated as dynamic; empty = every class.
   std::vector<std::string> classes{"person"};
-  int detect_every = 1;  ///< run the detector on every k-th frame (k >= 1); see HtxSource
-  int num_threads = 1;   ///< threads of preprocess and the detector's attention; 0 = all, >= 0
+  int detect_every = 1;   ///< run the detector on every k-th frame (k >= 1); see HtxSource
+  int num_threads = 1;    ///< threads of preprocess and the detector's attention; 0 = all, >= 0
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 
 /// What HtxSource did on the last frame.
 struct HtxFrameStats {
-  bool detected = false;      ///< the detector ran (false: frame skipped by detect_every, or no depth)
-  bool ground_found = false;  ///< the gravity alignment came from this frame's floor plane
+  bool detected = false;  ///< the detector ran (false: frame skipped by detect_every, or no depth)
+  bool ground_found = false;   ///< the gravity alignment came from this frame's floor plane
   std::size_t num_points = 0;  ///< preprocessed points (before the draw)
   std::size_t num_boxes = 0;   ///< boxes reported (after the class and score filters)
   double preprocess_ms = 0;    ///< wall time of preprocess + draw [ms]

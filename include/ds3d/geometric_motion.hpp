@@ -89,7 +89,7 @@ struct GeometricMotionParams {
   /// baselines flag wider bands on walkers but, on recorded data (TUM fr1), also static edges:
   /// 4 and 6 were tried (docs/dynamic.md); the default is that of the pose.
   int warp_gap = 2;
-  int warp_stride = 4;            ///< grid step of the dense depth warp [px], >= 1
+  int warp_stride = 4;  ///< grid step of the dense depth warp [px], >= 1
   int warp_window = 3;  ///< half-size of the depth-edge / min-depth window of the warp [px], >= 0
   double warp_chi2 = 10.83;     ///< χ²(1 dof, 99.9%) of the warp's depth test, > 0
   double min_warp_area = 0.01;  ///< smallest warp candidate (metric area of its pixels) [m²], > 0
@@ -102,10 +102,10 @@ struct GeometricMotionParams {
   /// the pixels) cuts the source's instructions by a third, but finds fewer moving keypoints:
   /// Bonn crowd ATE 0.0228 m against 0.0209 m at 1 (docs/dynamic.md).
   double image_scale = 1.0;
-  double max_depth = 6.0;         ///< depths beyond this are ignored [m], > 0
-  int min_cluster_size = 6;       ///< HDBSCAN min_cluster_size (moving keypoints), >= 2
-  int min_samples = 3;            ///< HDBSCAN min_samples, >= 1
-  double min_support = 0.5;       ///< moving / tested keypoints in a cluster's region, in (0, 1]
+  double max_depth = 6.0;    ///< depths beyond this are ignored [m], > 0
+  int min_cluster_size = 6;  ///< HDBSCAN min_cluster_size (moving keypoints), >= 2
+  int min_samples = 3;       ///< HDBSCAN min_samples, >= 1
+  double min_support = 0.5;  ///< moving / tested keypoints in a cluster's region, in (0, 1]
   /// Support test of warp components, in [0, 1]; 0 (default) = none. A component passes when
   /// ≥ min_support of the tested cells in its rectangle moved, or ≥ this share of the tested
   /// cells within one cell of it (a solid band on a mover's body; pose-error flags along static
@@ -115,7 +115,7 @@ struct GeometricMotionParams {
   /// without; docs/dynamic.md). Use 0.7 with a longer warp_gap.
   double min_band_support = 0.0;
   double max_object_size =
-      2.2;                   ///< clusters larger than this in x, y or z are not objects [m], > 0
+      2.2;  ///< clusters larger than this in x, y or z are not objects [m], > 0
   /// Widest object segment along the floor [m], > 0: a walking person with swinging arms
   /// (shoulders about 0.5 m, a stride up to 1 m). A segment growing wider, or higher than
   /// max_object_size above the floor, has joined a wall or furniture and keeps its seeds only.
@@ -125,7 +125,7 @@ struct GeometricMotionParams {
   /// Grow each object over the depth-continuous surface around its evidence (step 6 of the file
   /// comment) and report it as DynamicObjects::pixel_mask. Off: boxes of the evidence only.
   bool segment_objects = true;
-  void validate() const;     ///< throws ds3d::InvalidArgument naming the bad field
+  void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 
 /// Statistics of the last detect() call.
@@ -225,4 +225,3 @@ namespace ds3d::detail {
 // GeometricMotionSource; exposed for its test.
 std::vector<cv::DMatch> mutual_ratio_matches(const cv::Mat& a, const cv::Mat& b, float ratio);
 }  // namespace ds3d::detail
-

@@ -10,7 +10,8 @@
 /// per level follows a geometric series so that every level gets features in proportion to its
 /// area. Orientation is the intensity centroid (Rosin 1999) and the descriptor is OpenCV's rotated
 /// BRIEF (Rublee et al. 2011). Each keypoint is then undistorted and given the depth measured at
-/// its pixel, which makes it a "close" (reliable depth) or "far" point as in ORB-SLAM2's RGB-D mode.
+/// its pixel, which makes it a "close" (reliable depth) or "far" point as in ORB-SLAM2's RGB-D
+/// mode.
 
 #include <cstddef>
 #include <cstdint>
@@ -25,25 +26,29 @@ namespace ds3d::slam {
 
 /// Parameters of the ORB extractor. Defaults are ORB-SLAM2's for 640×480 RGB-D input.
 struct OrbParams {
-  int num_features = 1000;       ///< target number of features over all levels, > 0
-  int num_levels = 8;            ///< pyramid levels, in [1, 16]
-  double scale_factor = 1.2;     ///< scale between consecutive levels, in (1, 2]
-  int fast_threshold = 20;       ///< FAST intensity threshold, in [1, 255]
-  int min_fast_threshold = 7;    ///< fallback threshold for cells with no corner, in [1, fast_threshold]
-  int cell_size = 35;            ///< grid cell edge [px at that level], >= 8
-  double max_depth = 3.0;        ///< keypoints up to this depth [m] are "close" (ORB-SLAM2's ThDepth), > 0
-  double min_depth = 0.1;        ///< depths below this [m] are treated as missing, >= 0
-  double max_range = 10.0;       ///< depths beyond this [m] are treated as missing, >= max_depth
-  void validate() const;         ///< throws ds3d::InvalidArgument naming the bad field
+  int num_features = 1000;    ///< target number of features over all levels, > 0
+  int num_levels = 8;         ///< pyramid levels, in [1, 16]
+  double scale_factor = 1.2;  ///< scale between consecutive levels, in (1, 2]
+  int fast_threshold = 20;    ///< FAST intensity threshold, in [1, 255]
+  int min_fast_threshold =
+      7;               ///< fallback threshold for cells with no corner, in [1, fast_threshold]
+  int cell_size = 35;  ///< grid cell edge [px at that level], >= 8
+  double max_depth =
+      3.0;  ///< keypoints up to this depth [m] are "close" (ORB-SLAM2's ThDepth), > 0
+  double min_depth = 0.1;   ///< depths below this [m] are treated as missing, >= 0
+  double max_range = 10.0;  ///< depths beyond this [m] are treated as missing, >= max_depth
+  void validate() const;    ///< throws ds3d::InvalidArgument naming the bad field
 };
 
 /// The features of one frame. All vectors have one entry per keypoint, in the same order as the
 /// rows of `descriptors`.
 struct OrbFeatures {
-  std::vector<cv::KeyPoint> keypoints;  ///< raw (distorted) pixels, level-0 coordinates; octave = level
-  cv::Mat descriptors;                  ///< N×32 CV_8U rotated-BRIEF descriptors
+  std::vector<cv::KeyPoint>
+      keypoints;        ///< raw (distorted) pixels, level-0 coordinates; octave = level
+  cv::Mat descriptors;  ///< N×32 CV_8U rotated-BRIEF descriptors
   std::vector<Eigen::Vector2f> undistorted;  ///< undistorted pixel (u, v) with the same intrinsics
-  std::vector<float> depth;  ///< depth [m] at the keypoint; 0 when missing or outside [min_depth, max_range]
+  std::vector<float>
+      depth;  ///< depth [m] at the keypoint; 0 when missing or outside [min_depth, max_range]
   float close_depth = 3.0F;  ///< params.max_depth: the close/far threshold [m]
   /// Number of keypoints.
   [[nodiscard]] std::size_t size() const noexcept { return keypoints.size(); }
@@ -75,7 +80,9 @@ class OrbExtractor {
                                     const PinholeCamera& camera) const;
 
   /// Scale of pyramid level `level` relative to level 0 (scale_factor^level).
-  [[nodiscard]] double level_scale(int level) const { return scales_.at(static_cast<std::size_t>(level)); }
+  [[nodiscard]] double level_scale(int level) const {
+    return scales_.at(static_cast<std::size_t>(level));
+  }
   /// The parameters as validated by the constructor.
   [[nodiscard]] const OrbParams& params() const noexcept { return params_; }
 

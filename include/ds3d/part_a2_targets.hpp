@@ -32,7 +32,8 @@ struct PartTargetParams {
   /// Throws ds3d::InvalidArgument naming the bad value.
   void validate() const {
     DS3D_CHECK(std::isfinite(extra_width) && extra_width >= 0.0,
-               "ds3d::part_a2_targets: extra_width must be finite and >= 0 (got ", extra_width, ")");
+               "ds3d::part_a2_targets: extra_width must be finite and >= 0 (got ", extra_width,
+               ")");
   }
 };
 

@@ -12,8 +12,9 @@
 /// Lebeda, Matas & Chum 2012): the points within 3t of the plane are fitted by least squares
 /// (smallest eigenvector of their covariance) and the inliers re-selected, a round being kept only
 /// if it does not lose inliers; so the returned inliers are exactly the inliers of the returned
-/// plane (Open3D 0.16 skips the re-selection). An optional normal prior restricts hypotheses to planes whose normal lies within
-/// an angle of a given up vector, so that the floor is chosen rather than a larger wall.
+/// plane (Open3D 0.16 skips the re-selection). An optional normal prior restricts hypotheses to
+/// planes whose normal lies within an angle of a given up vector, so that the floor is chosen
+/// rather than a larger wall.
 
 #include <cstddef>
 #include <cstdint>

@@ -107,38 +107,37 @@ class NoDynamicMasker final : public DynamicFeatureMasker {
 
 /// Configuration of SlamFrontend. Defaults follow ORB-SLAM2's TUM RGB-D settings.
 struct FrontendConfig {
-  PinholeCamera camera;           ///< intrinsics, distortion and depth scale of the input
-  OrbParams orb;                  ///< feature extraction (orb.max_depth = close/far threshold)
-  PoseOptimizerParams pose;       ///< pose-only optimisation
-  LocalBaParams local_ba;         ///< local bundle adjustment
-  double bf = 40.0;               ///< virtual stereo baseline × fx [px·m] for depth residuals, > 0
-  int min_init_points = 100;      ///< keypoints with depth needed to start the map, >= 10
-  int min_tracked_inliers = 30;   ///< local-map inliers for a frame to count as tracked, >= 10
-  int keyframe_max_gap = 30;      ///< insert a keyframe at least every this many frames, >= 1
-  int local_window = 10;          ///< keyframes optimised by local BA (covisible window), >= 2
-  int max_fixed_keyframes = 20;   ///< other observing keyframes held fixed in local BA, >= 1
-  bool enable_local_ba = true;    ///< run local BA on every new keyframe
-  bool fuse_neighbors = false;    ///< merge duplicate map points with the covisible keyframes on
-                                  ///< keyframe insertion (ORB-SLAM2's SearchInNeighbors + Fuse);
-                                  ///< off by default: −3 % ATE on fr1_xyz but 5× worse on Bonn
-                                  ///< crowd without a dynamic filter (docs/slam.md)
-  bool mapping_thread = true;     ///< run local BA in its own thread (results are identical)
-  bool final_global_ba = true;    ///< finish() runs a BA over all keyframes and points (first fixed)
-  int ba_apply_lag = 3;           ///< frames after a keyframe at which its BA result is applied, >= 0
+  PinholeCamera camera;          ///< intrinsics, distortion and depth scale of the input
+  OrbParams orb;                 ///< feature extraction (orb.max_depth = close/far threshold)
+  PoseOptimizerParams pose;      ///< pose-only optimisation
+  LocalBaParams local_ba;        ///< local bundle adjustment
+  double bf = 40.0;              ///< virtual stereo baseline × fx [px·m] for depth residuals, > 0
+  int min_init_points = 100;     ///< keypoints with depth needed to start the map, >= 10
+  int min_tracked_inliers = 30;  ///< local-map inliers for a frame to count as tracked, >= 10
+  int keyframe_max_gap = 30;     ///< insert a keyframe at least every this many frames, >= 1
+  int local_window = 10;         ///< keyframes optimised by local BA (covisible window), >= 2
+  int max_fixed_keyframes = 20;  ///< other observing keyframes held fixed in local BA, >= 1
+  bool enable_local_ba = true;   ///< run local BA on every new keyframe
+  bool fuse_neighbors = false;   ///< merge duplicate map points with the covisible keyframes on
+                                 ///< keyframe insertion (ORB-SLAM2's SearchInNeighbors + Fuse);
+                                 ///< off by default: −3 % ATE on fr1_xyz but 5× worse on Bonn
+                                 ///< crowd without a dynamic filter (docs/slam.md)
+  bool mapping_thread = true;    ///< run local BA in its own thread (results are identical)
+  bool final_global_ba = true;   ///< finish() runs a BA over all keyframes and points (first fixed)
+  int ba_apply_lag = 3;  ///< frames after a keyframe at which its BA result is applied, >= 0
   int relocalisation_candidates = 30;  ///< most recent keyframes tried when lost, >= 1
-  int reanchor_after_lost = 10;   ///< consecutive lost frames after which a new map segment starts
-                                  ///< at the last pose (0 = never), >= 0
+  int reanchor_after_lost = 10;  ///< consecutive lost frames after which a new map segment starts
+                                 ///< at the last pose (0 = never), >= 0
   double keyframe_ref_ratio = 0.75;  ///< a keyframe is needed when the frame tracks fewer than
                                      ///< this fraction of the reference keyframe's well-observed
                                      ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
-  bool refine_frame_poses = true;  ///< finish(): re-optimise every tracked non-keyframe pose
-                                   ///< against the final map with the matches it was tracked
-                                   ///< with (pose-only, as in tracking); keyframes keep theirs.
-                                   ///< Keeps ≈ 50 B per match until finish() (≈ 20 kB a frame):
-                                   ///< turn off for very long sequences
+  /// finish(): re-optimise every tracked non-keyframe pose against the final map with the
+  /// matches it was tracked with (pose-only, as in tracking); keyframes keep theirs. Keeps ≈ 50 B
+  /// per match until finish() (≈ 20 kB a frame): turn off for very long sequences.
+  bool refine_frame_poses = true;
   int refine_rounds = 2;  ///< after that refinement: rounds of (move every map point using all
                           ///< frames' matches, poses fixed; refine the frames again), >= 0
-  void validate() const;          ///< throws ds3d::InvalidArgument naming the bad field
+  void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 
 /// Tracking state of a frame.
@@ -169,18 +168,18 @@ struct StageTimes {
 
 /// The outcome of tracking one frame.
 struct TrackResult {
-  std::size_t index = 0;        ///< frame index
-  double timestamp = 0;         ///< [s]
+  std::size_t index = 0;                                          ///< frame index
+  double timestamp = 0;                                           ///< [s]
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< online estimate
-  TrackState state = TrackState::kNotInitialized;  ///< see TrackState
-  bool tracked = false;         ///< state is kInitialized, kTracking or kRelocalized
-  bool keyframe = false;        ///< this frame became a keyframe
-  int num_features = 0;         ///< keypoints extracted
-  int num_dynamic = 0;          ///< keypoints the dynamic filter removed
-  int num_inliers = 0;          ///< map-point matches kept by the last pose optimisation
-  std::vector<cv::Point2f> keypoints;          ///< raw pixel of every extracted keypoint
+  TrackState state = TrackState::kNotInitialized;                 ///< see TrackState
+  bool tracked = false;                ///< state is kInitialized, kTracking or kRelocalized
+  bool keyframe = false;               ///< this frame became a keyframe
+  int num_features = 0;                ///< keypoints extracted
+  int num_dynamic = 0;                 ///< keypoints the dynamic filter removed
+  int num_inliers = 0;                 ///< map-point matches kept by the last pose optimisation
+  std::vector<cv::Point2f> keypoints;  ///< raw pixel of every extracted keypoint
   std::vector<KeypointStatus> keypoint_status;  ///< one per keypoint
-  StageTimes times;             ///< stage timings
+  StageTimes times;                             ///< stage timings
 };
 
 /// A frame after the extraction and dynamic stages (what the tracking stage consumes).
@@ -194,10 +193,10 @@ struct PreparedFrame {
 
 /// A timestamped pose (camera-to-world).
 struct FramePose {
-  std::size_t index = 0;  ///< frame index
-  double timestamp = 0;   ///< [s]
+  std::size_t index = 0;                                          ///< frame index
+  double timestamp = 0;                                           ///< [s]
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< camera → world
-  bool tracked = false;   ///< false: carried over from the last tracked frame
+  bool tracked = false;  ///< false: carried over from the last tracked frame
 };
 
 /// RGB-D SLAM front-end: feed frames in time order, read poses.
@@ -285,9 +284,9 @@ class SlamFrontend {
 
 /// Options of run_pipeline.
 struct PipelineOptions {
-  bool threaded = true;        ///< stages in their own threads (false: all on the caller's)
-  int queue_capacity = 2;      ///< frames buffered between consecutive stages, >= 1
-  void validate() const;       ///< throws ds3d::InvalidArgument naming the bad field
+  bool threaded = true;    ///< stages in their own threads (false: all on the caller's)
+  int queue_capacity = 2;  ///< frames buffered between consecutive stages, >= 1
+  void validate() const;   ///< throws ds3d::InvalidArgument naming the bad field
 };
 
 /// Runs the four stages over a sequence: extraction and dynamic-object detection in parallel

@@ -41,29 +41,29 @@ class WeightsFile;
 /// Architecture and post-processing numbers, read from the weights file's metadata (`config`,
 /// written by ds3d.htx.export); mirrors ds3d/htx/config.py.
 struct DetectorConfig {
-  std::string profile;               ///< "fast" or "quality" (informational)
-  int num_centres = 384;             ///< FPS tokens of the set-abstraction layer
-  float sa_radius = 0.25F;           ///< ball-query radius [m]
-  int sa_samples = 32;               ///< samples per ball
-  std::vector<int> sa_mlp;           ///< shared-MLP widths, last = d_model
-  int d_model = 128;                 ///< transformer width
-  int num_heads = 4;                 ///< attention heads (d_model divisible by it)
-  int enc_layers = 2;                ///< encoder layers
-  int enc_ffn = 128;                 ///< encoder FFN width
-  int dec_layers = 3;                ///< decoder layers
-  int dec_ffn = 128;                 ///< decoder FFN width
-  int num_queries = 64;              ///< box queries
-  int num_classes = 1;               ///< K (the class head has K + 1 outputs, last = background)
+  std::string profile;      ///< "fast" or "quality" (informational)
+  int num_centres = 384;    ///< FPS tokens of the set-abstraction layer
+  float sa_radius = 0.25F;  ///< ball-query radius [m]
+  int sa_samples = 32;      ///< samples per ball
+  std::vector<int> sa_mlp;  ///< shared-MLP widths, last = d_model
+  int d_model = 128;        ///< transformer width
+  int num_heads = 4;        ///< attention heads (d_model divisible by it)
+  int enc_layers = 2;       ///< encoder layers
+  int enc_ffn = 128;        ///< encoder FFN width
+  int dec_layers = 3;       ///< decoder layers
+  int dec_ffn = 128;        ///< decoder FFN width
+  int num_queries = 64;     ///< box queries
+  int num_classes = 1;      ///< K (the class head has K + 1 outputs, last = background)
   std::vector<std::string> class_names;  ///< K names
-  int num_angle_bins = 12;           ///< heading bins
-  int head_hidden = 128;             ///< hidden width of the box heads
-  int part_hidden = 64;              ///< hidden width of the part head
-  float layer_norm_eps = 1e-5F;      ///< LayerNorm epsilon
-  int min_points_in_box = 5;         ///< boxes holding fewer input points are dropped
-  float nms_iou = 0.25F;             ///< NMS suppresses same-class boxes with AABB IoU above this
-  float score_threshold = 0.05F;     ///< boxes need objectness above this
-  float min_size_extent = 0.1F;      ///< size = sigmoid * max(scene extent, this) [m]
-  float fps_padding_norm2 = 1e-3F;   ///< FPS never picks points with |p|^2 <= this
+  int num_angle_bins = 12;               ///< heading bins
+  int head_hidden = 128;                 ///< hidden width of the box heads
+  int part_hidden = 64;                  ///< hidden width of the part head
+  float layer_norm_eps = 1e-5F;          ///< LayerNorm epsilon
+  int min_points_in_box = 5;             ///< boxes holding fewer input points are dropped
+  float nms_iou = 0.25F;            ///< NMS suppresses same-class boxes with AABB IoU above this
+  float score_threshold = 0.05F;    ///< boxes need objectness above this
+  float min_size_extent = 0.1F;     ///< size = sigmoid * max(scene extent, this) [m]
+  float fps_padding_norm2 = 1e-3F;  ///< FPS never picks points with |p|^2 <= this
 
   /// Parses the JSON object written by the exporter. @throws ds3d::IoError naming the key.
   [[nodiscard]] static DetectorConfig from_json(std::string_view json);
@@ -78,16 +78,16 @@ struct DetectorConfig {
 
 /// Options of SparseDetector::run().
 struct DetectOptions {
-  int num_threads = 1;        ///< attention is split over heads on this many threads; 0 = all
-  bool part_logits = false;   ///< also run the part head on every input point
+  int num_threads = 1;       ///< attention is split over heads on this many threads; 0 = all
+  bool part_logits = false;  ///< also run the part head on every input point
 };
 
 /// Everything one forward pass produces (for parity checks, the SLAM masking and debugging).
 struct DetectorOutput {
-  std::vector<Box3> boxes;                     ///< final detections, decreasing objectness
-  std::vector<std::int32_t> centre_indices;    ///< [tokens] FPS indices into the input
-  std::vector<std::int32_t> query_indices;     ///< [queries] FPS indices into the tokens
-  std::vector<Box3> proposals;                 ///< [queries] decoded boxes before post-processing
+  std::vector<Box3> boxes;                   ///< final detections, decreasing objectness
+  std::vector<std::int32_t> centre_indices;  ///< [tokens] FPS indices into the input
+  std::vector<std::int32_t> query_indices;   ///< [queries] FPS indices into the tokens
+  std::vector<Box3> proposals;               ///< [queries] decoded boxes before post-processing
   Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> class_prob;  ///< [q, K]
   /// [n, 4] per input point: foreground logit, then 3 part-location logits (sigmoid gives the
   /// Part-A2 location in [0,1]^3); empty unless DetectOptions::part_logits.
@@ -166,8 +166,8 @@ class SparseDetector {
                                                      const std::vector<Box3>& proposals) const;
 
   /// Every tensor name and shape a weights file for `config` must hold (no more, no fewer).
-  [[nodiscard]] static std::vector<std::pair<std::string, std::vector<std::int64_t>>> expected_tensors(
-      const DetectorConfig& config);
+  [[nodiscard]] static std::vector<std::pair<std::string, std::vector<std::int64_t>>>
+  expected_tensors(const DetectorConfig& config);
 
   /// The configuration read from the weights file.
   [[nodiscard]] const DetectorConfig& config() const noexcept { return config_; }

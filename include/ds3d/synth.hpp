@@ -69,7 +69,7 @@ struct SynthOptions {
   /// clutter with legs and backs, the furniture a person detector must not mistake for people.
   /// Drawn from their own random stream, so the rest of the scene does not change with it.
   int extra_furniture = 0;
-  void validate() const;     ///< throws ds3d::InvalidArgument naming the bad field
+  void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 
 /// A humanoid's gravity-aligned oriented 3-D box (tight around its primitives) in the world.

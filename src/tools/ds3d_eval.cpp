@@ -122,7 +122,8 @@ int main(int argc, char** argv) {
             stats_json(ds3d::ErrorStats{r.rmse, r.mean, r.median, r.std, r.min, r.max}, "m");
         // The statistics' members inline (without the closing brace), as before.
         std::string out = "{\"compared_pose_pairs\":" + std::to_string(r.compared_pose_pairs) +
-                          "," + stats.substr(1, stats.size() - 2) + ",\"alignment\":{\"rotation\":[";
+                          "," + stats.substr(1, stats.size() - 2) +
+                          ",\"alignment\":{\"rotation\":[";
         for (int k = 0; k < 3; ++k) {
           out += (k ? ",[" : "[");
           for (int j = 0; j < 3; ++j) out += (j ? "," : "") + json_number(r.rotation(k, j));

@@ -42,23 +42,27 @@ constexpr const char* kUsage =
     "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
     "                 [--dynamic none|geometric|htx|htx+geometric|htx&geometric|file:PATH]\n"
     "                 [--weights PATH]\n"
-    "                 [--detect-every K] [--min-score S] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
+    "                 [--detect-every K] [--min-score S] [--max-frames N] [--stats stats.json] "
+    "[--viz OUT_DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
     "                 [--fusion] [--local-window N] [--bf BF] [--kf-ratio R]\n"
     "                 [--no-refine] [--refine-rounds N] [--cv-threads N] [--quiet]\n"
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
     "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present.\n"
     "--dynamic: where boxes of moving objects come from: none (keep every keypoint), geometric\n"
-    "  (multi-view motion, no learned weights), htx (the HTx-lite 3-D detector on the preprocessed\n"
+    "  (multi-view motion, no learned weights), htx (the HTx-lite 3-D detector on the "
+    "preprocessed\n"
     "  depth), file:PATH (JSON lines, see detections.hpp), or A+B: A, then B on what A left\n"
     "  (htx+geometric is 3DS-SLAM's semantic-then-geometric order), or A&B: A's boxes only where\n"
-    "  B sees motion in the frame (htx&geometric: detected people that move); keypoints in the boxes go\n"
+    "  B sees motion in the frame (htx&geometric: detected people that move); keypoints in the "
+    "boxes go\n"
     "  through the box-gated HDBSCAN filter (dynamic_filter.hpp).\n"
     "--weights: HTx weights file (default: models/htx_lite_fast.safetensors of the source tree,\n"
     "  else <prefix>/share/ds3d/models/). --detect-every K: run the detector on every K-th frame\n"
     "  (default 1; the frames between reuse its boxes). --min-score S: detector score threshold\n"
     "  in [0, 1] (default 0.3).\n"
-    "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes (blue).\n"
+    "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
+    "(blue).\n"
     "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
     "  default: it hurts on dynamic scenes without a dynamic filter, see docs/slam.md).\n"
     "--local-window: keyframes optimised by local BA (default 10).\n"
@@ -185,7 +189,8 @@ Args parse(int argc, char** argv) {
   }
   if (pos.size() != 1) usage_error("expected exactly one DATASET_DIR");
   a.dataset = pos[0];
-  const bool uses_htx = a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
+  const bool uses_htx =
+      a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
   if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F)) {
     usage_error("--weights, --detect-every and --min-score need --dynamic htx or htx+...");
   }
@@ -326,7 +331,8 @@ int run(const Args& a) {
     if (tty && (done % 5 == 0 || done == total)) {
       const double sec = std::chrono::duration<double>(now - t_start).count();
       const int width = 30;
-      const auto filled = static_cast<int>(width * static_cast<double>(done) / static_cast<double>(total));
+      const auto filled =
+          static_cast<int>(width * static_cast<double>(done) / static_cast<double>(total));
       std::fprintf(stderr, "\r[%s%s] %zu/%zu frames  %.1f fps  %s   ",
                    std::string(static_cast<std::size_t>(filled), '#').c_str(),
                    std::string(static_cast<std::size_t>(width - filled), '.').c_str(), done, total,
@@ -338,7 +344,8 @@ int run(const Args& a) {
   popt.threaded = a.threads;
   const auto results = ds3d::slam::run_dataset(slam, ds, total, on_result, popt);
   if (tty) std::fprintf(stderr, "\n");
-  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
 
   ds3d::write_tum_trajectory(a.out, ds3d::slam::to_trajectory(slam.trajectory()));
   if (!a.keyframes.empty()) {
@@ -369,7 +376,8 @@ int run(const Args& a) {
   // The first frames include thread start-up; fps is over the steady state (all intervals but
   // the first) so that it reflects the pipeline's throughput.
   std::vector<double> fps;
-  for (std::size_t i = 1; i < frame_ms.size(); ++i) fps.push_back(frame_ms[i] > 0 ? 1000.0 / frame_ms[i] : 0.0);
+  for (std::size_t i = 1; i < frame_ms.size(); ++i)
+    fps.push_back(frame_ms[i] > 0 ? 1000.0 / frame_ms[i] : 0.0);
   const auto fps_p = percentiles(fps);
   if (!a.stats.empty()) {
     using ds3d::detail::json_escape;
@@ -377,8 +385,9 @@ int run(const Args& a) {
     std::ostringstream js;
     auto stage = [&](const char* name, const std::vector<double>& v, bool comma) {
       const auto p = percentiles(v);
-      js << "    \"" << json_escape(name) << "\"" << ": {\"median_ms\": " << json_number(p.median)
-         << ", \"p95_ms\": " << json_number(p.p95) << "}" << (comma ? ",\n" : "\n");
+      js << "    \"" << json_escape(name) << "\""
+         << ": {\"median_ms\": " << json_number(p.median) << ", \"p95_ms\": " << json_number(p.p95)
+         << "}" << (comma ? ",\n" : "\n");
     };
     js << "{\n  \"dataset\": \"" << json_escape(a.dataset.string()) << "\",\n"
        << "  \"dynamic\": \"" << json_escape(a.dynamic) << "\",\n"
@@ -395,11 +404,12 @@ int run(const Args& a) {
        << "  \"fps_median\": " << json_number(fps_p.median) << ",\n"
        << "  \"frame_interval\": {\"median_ms\": " << json_number(percentiles(frame_ms).median)
        << ", \"p95_ms\": " << json_number(percentiles(frame_ms).p95) << "},\n"
-       << "  \"local_ba\": {\"count\": " << slam.num_local_ba() << ", \"total_cpu_ms\": "
-       << json_number(slam.local_ba_ms()) << ", \"mean_cpu_ms\": "
-       << json_number(slam.num_local_ba() > 0 ? slam.local_ba_ms() / static_cast<double>(slam.num_local_ba()) : 0.0)
-       << "},\n  \"refine_cpu_ms\": " << json_number(slam.refine_ms())
-       << ",\n  \"stages\": {\n";
+       << "  \"local_ba\": {\"count\": " << slam.num_local_ba()
+       << ", \"total_cpu_ms\": " << json_number(slam.local_ba_ms()) << ", \"mean_cpu_ms\": "
+       << json_number(slam.num_local_ba() > 0
+                          ? slam.local_ba_ms() / static_cast<double>(slam.num_local_ba())
+                          : 0.0)
+       << "},\n  \"refine_cpu_ms\": " << json_number(slam.refine_ms()) << ",\n  \"stages\": {\n";
     stage("extract", ex, true);
     stage("detect", de, true);
     stage("filter", fi, true);
@@ -414,9 +424,9 @@ int run(const Args& a) {
   }
   if (!a.quiet) {
     std::cout << "frames " << results.size() << ", tracked " << tracked << ", lost " << lost
-              << ", keyframes " << slam.num_keyframes() << ", map points " << slam.map_points().rows()
-              << ", " << static_cast<double>(results.size()) / wall_s << " fps (median "
-              << fps_p.median << ")\n"
+              << ", keyframes " << slam.num_keyframes() << ", map points "
+              << slam.map_points().rows() << ", " << static_cast<double>(results.size()) / wall_s
+              << " fps (median " << fps_p.median << ")\n"
               << "trajectory written to " << a.out.string() << "\n";
   }
   return 0;

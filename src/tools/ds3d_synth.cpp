@@ -1,11 +1,12 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // ds3d-synth OUT_DIR --scenario NAME --frames N --seed S [--humans K] [--fps F] [--parts]
-//            [--no-noise] [--room X,Y,Z] [--furniture N]: writes a synthetic dynamic RGB-D sequence in TUM layout.
+//            [--no-noise] [--room X,Y,Z] [--furniture N]: writes a synthetic dynamic RGB-D sequence
+//            in TUM layout.
 #include <cstdlib>
 #include <exception>
-#include <stdexcept>
 #include <iostream>
+#include <stdexcept>
 #include <string>
 
 #include "ds3d/synth.hpp"
@@ -58,11 +59,13 @@ int main(int argc, char** argv) {
         std::size_t pos = 0;
         for (int k = 0; k < 3; ++k) {
           const std::size_t end = k < 2 ? v.find(',', pos) : v.size();
-          if (end == std::string::npos) throw std::invalid_argument("--room: expected X,Y,Z, got '" + v + "'");
+          if (end == std::string::npos)
+            throw std::invalid_argument("--room: expected X,Y,Z, got '" + v + "'");
           std::size_t used = 0;
           const std::string part = v.substr(pos, end - pos);
           xyz[k] = std::stod(part, &used);
-          if (used != part.size()) throw std::invalid_argument("--room: not a number: '" + part + "'");
+          if (used != part.size())
+            throw std::invalid_argument("--room: not a number: '" + part + "'");
           pos = end + 1;
         }
         opt.room_size = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);

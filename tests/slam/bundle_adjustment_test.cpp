@@ -47,8 +47,9 @@ TEST_P(JacobianTest, AnalyticMatchesCentralDifferences) {
   const bool stereo = GetParam();
   ds3d::test::Rng rng(7);
   for (int trial = 0; trial < 20; ++trial) {
-    const Eigen::Isometry3d T = make_pose({rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)},
-                                          {rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)});
+    const Eigen::Isometry3d T =
+        make_pose({rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)},
+                  {rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1)});
     // A point 1-4 m in front of the camera, expressed in the world.
     const Eigen::Vector3d pc(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(1, 4));
     const Eigen::Vector3d pw = T.inverse() * pc;
@@ -65,8 +66,10 @@ TEST_P(JacobianTest, AnalyticMatchesCentralDifferences) {
       d[c] = h;
       double rp[3];
       double rm[3];
-      ds3d::slam::reprojection_residual(kK, ds3d::slam::pose_plus(T, d), pw, obs, rp, nullptr, nullptr);
-      ds3d::slam::reprojection_residual(kK, ds3d::slam::pose_plus(T, -d), pw, obs, rm, nullptr, nullptr);
+      ds3d::slam::reprojection_residual(kK, ds3d::slam::pose_plus(T, d), pw, obs, rp, nullptr,
+                                        nullptr);
+      ds3d::slam::reprojection_residual(kK, ds3d::slam::pose_plus(T, -d), pw, obs, rm, nullptr,
+                                        nullptr);
       for (int row = 0; row < dim; ++row) {
         const double numeric = (rp[row] - rm[row]) / (2 * h);
         EXPECT_NEAR(jp[row * 6 + c], numeric, 1e-4 * std::max(1.0, std::abs(numeric)))
@@ -97,7 +100,9 @@ TEST(ReprojectionResidual, PointBehindCameraGivesZeroDimension) {
   Observation o;
   o.u_right = 10.0;
   o.has_depth = true;
-  EXPECT_EQ(ds3d::slam::reprojection_residual(kK, Eigen::Isometry3d::Identity(), {0, 0, -1}, o, r, j, nullptr), 0);
+  EXPECT_EQ(ds3d::slam::reprojection_residual(kK, Eigen::Isometry3d::Identity(), {0, 0, -1}, o, r,
+                                              j, nullptr),
+            0);
   EXPECT_EQ(r[0], 0.0);
   EXPECT_EQ(r[2], 0.0);
 }
@@ -109,7 +114,8 @@ TEST(PosePlus, ZeroDeltaIsIdentityAndStaysOrthonormal) {
   Vector6d d;
   d << 0.3, 0.2, -0.1, 0.5, 0.1, 0.2;
   for (int i = 0; i < 1000; ++i) U = ds3d::slam::pose_plus(U, d);
-  EXPECT_NEAR((U.linear().transpose() * U.linear() - Eigen::Matrix3d::Identity()).norm(), 0.0, 1e-9);
+  EXPECT_NEAR((U.linear().transpose() * U.linear() - Eigen::Matrix3d::Identity()).norm(), 0.0,
+              1e-9);
 }
 
 struct Scene {
@@ -141,7 +147,8 @@ Scene make_scene(std::uint64_t seed, int n, double outlier_fraction) {
 TEST(OptimizePose, RecoversPoseAndFlagsOutliers) {
   const Scene s = make_scene(3, 300, 0.2);
   // Start 5 cm and ~3 degrees away.
-  const Eigen::Isometry3d init = ds3d::slam::pose_plus(s.truth, (Vector6d() << 0.03, -0.02, 0.04, 0.05, -0.03, 0.02).finished());
+  const Eigen::Isometry3d init = ds3d::slam::pose_plus(
+      s.truth, (Vector6d() << 0.03, -0.02, 0.04, 0.05, -0.03, 0.02).finished());
   const auto r = ds3d::slam::optimize_pose(kK, init, s.points, s.obs);
   EXPECT_LT((r.T_cam_world.translation() - s.truth.translation()).norm(), 0.005);
   EXPECT_LT(rotation_error_rad(r.T_cam_world, s.truth), 0.002);
@@ -172,25 +179,30 @@ TEST(OptimizePose, RejectsBadInput) {
   EXPECT_THROW((void)ds3d::slam::optimize_pose(kK, s.truth, fewer, s.obs), ds3d::InvalidArgument);
   ds3d::slam::PoseOptimizerParams p;
   p.rounds = 0;
-  EXPECT_THROW((void)ds3d::slam::optimize_pose(kK, s.truth, s.points, s.obs, p), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::optimize_pose(kK, s.truth, s.points, s.obs, p),
+               ds3d::InvalidArgument);
   p = {};
   p.chi2_mono = std::nan("");
-  EXPECT_THROW((void)ds3d::slam::optimize_pose(kK, s.truth, s.points, s.obs, p), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::optimize_pose(kK, s.truth, s.points, s.obs, p),
+               ds3d::InvalidArgument);
 }
 
 TEST(LocalBundleAdjustment, ReducesErrorWithFixedGauge) {
   ds3d::test::Rng rng(11);
   std::vector<Eigen::Isometry3d> truth;
-  for (int i = 0; i < 5; ++i) truth.push_back(make_pose({0.0, 0.02 * i + 1e-9, 0.0}, {-0.1 * i, 0.0, 0.0}));
+  for (int i = 0; i < 5; ++i)
+    truth.push_back(make_pose({0.0, 0.02 * i + 1e-9, 0.0}, {-0.1 * i, 0.0, 0.0}));
   std::vector<Eigen::Vector3d> pts_true;
-  for (int j = 0; j < 200; ++j) pts_true.emplace_back(rng.uniform(-1.5, 1.5), rng.uniform(-1, 1), rng.uniform(2, 5));
+  for (int j = 0; j < 200; ++j)
+    pts_true.emplace_back(rng.uniform(-1.5, 1.5), rng.uniform(-1, 1), rng.uniform(2, 5));
   std::vector<BaObservation> obs;
   for (int i = 0; i < 5; ++i) {
     for (int j = 0; j < 200; ++j) {
       BaObservation o;
       o.keyframe = i;
       o.point = j;
-      o.obs = observe(truth[static_cast<std::size_t>(i)], pts_true[static_cast<std::size_t>(j)], true);
+      o.obs =
+          observe(truth[static_cast<std::size_t>(i)], pts_true[static_cast<std::size_t>(j)], true);
       o.obs.pixel += Eigen::Vector2d(rng.normal(), rng.normal()) * 0.3;
       o.obs.u_right += rng.normal() * 0.3;
       obs.push_back(o);
@@ -200,14 +212,16 @@ TEST(LocalBundleAdjustment, ReducesErrorWithFixedGauge) {
   std::vector<Eigen::Isometry3d> init = truth;
   std::vector<std::uint8_t> fixed{1, 0, 0, 0, 0};
   for (std::size_t i = 1; i < init.size(); ++i) {
-    init[i] = ds3d::slam::pose_plus(truth[i], (Vector6d() << 0.01, -0.01, 0.005, 0.03, 0.02, -0.02).finished());
+    init[i] = ds3d::slam::pose_plus(
+        truth[i], (Vector6d() << 0.01, -0.01, 0.005, 0.03, 0.02, -0.02).finished());
   }
   std::vector<Eigen::Vector3d> pts = pts_true;
   for (auto& p : pts) p += Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal()) * 0.02;
   const auto r = ds3d::slam::local_bundle_adjustment(kK, init, fixed, pts, obs);
   EXPECT_TRUE(r.poses[0].isApprox(init[0]));  // fixed stays put
   for (std::size_t i = 1; i < truth.size(); ++i) {
-    EXPECT_LT((r.poses[i].translation() - truth[i].translation()).norm(), 0.005) << "keyframe " << i;
+    EXPECT_LT((r.poses[i].translation() - truth[i].translation()).norm(), 0.005)
+        << "keyframe " << i;
     EXPECT_LT((init[i].translation() - truth[i].translation()).norm(), 0.1);
   }
   EXPECT_LT(r.final_cost, r.initial_cost);
@@ -219,13 +233,17 @@ TEST(LocalBundleAdjustment, RejectsBadInput) {
   const std::vector<Eigen::Isometry3d> poses(2, Eigen::Isometry3d::Identity());
   const std::vector<Eigen::Vector3d> pts{{0, 0, 2}};
   std::vector<BaObservation> obs(1);
-  EXPECT_THROW((void)ds3d::slam::local_bundle_adjustment(kK, poses, {0, 0}, pts, obs), ds3d::InvalidArgument);
-  EXPECT_THROW((void)ds3d::slam::local_bundle_adjustment(kK, poses, {1}, pts, obs), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::local_bundle_adjustment(kK, poses, {0, 0}, pts, obs),
+               ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::local_bundle_adjustment(kK, poses, {1}, pts, obs),
+               ds3d::InvalidArgument);
   obs[0].point = 3;
-  EXPECT_THROW((void)ds3d::slam::local_bundle_adjustment(kK, poses, {1, 0}, pts, obs), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::local_bundle_adjustment(kK, poses, {1, 0}, pts, obs),
+               ds3d::InvalidArgument);
   obs[0].point = 0;
   obs[0].keyframe = -1;
-  EXPECT_THROW((void)ds3d::slam::local_bundle_adjustment(kK, poses, {1, 0}, pts, obs), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::local_bundle_adjustment(kK, poses, {1, 0}, pts, obs),
+               ds3d::InvalidArgument);
 }
 
 }  // namespace

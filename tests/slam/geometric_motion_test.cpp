@@ -86,8 +86,8 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
                 << s.num_moving_pixels << "/" << s.num_warp_tested << " wcand "
                 << s.num_warp_candidates << " new " << s.num_new_objects << " obj " << s.num_objects
                 << " seg " << s.num_segments << "/" << s.num_segments_leaked << " cells "
-                << s.num_segment_cells << " floor " << s.ground_found
-                << " dyn " << std::count(m.begin(), m.end(), 1) << "/" << m.size();
+                << s.num_segment_cells << " floor " << s.ground_found << " dyn "
+                << std::count(m.begin(), m.end(), 1) << "/" << m.size();
       if (!f.truth.empty()) {
         int on = 0, on_moving = 0, off_moving = 0, on_cand = 0, off_cand = 0;
         for (const auto& t : src.last_tested()) {
@@ -120,16 +120,17 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
         cv::rectangle(img, cv::Point2f(b.x_min, b.y_min), cv::Point2f(b.x_max, b.y_max),
                       cv::Scalar(255, 128, 0), 2);
       }
-      cv::imwrite((std::filesystem::path(dir) / ("geom_" + tag + "_" + std::to_string(i) + ".png")).string(),
+      cv::imwrite((std::filesystem::path(dir) / ("geom_" + tag + "_" + std::to_string(i) + ".png"))
+                      .string(),
                   img);
     }
     if (trace && !f.truth.empty()) {
       int tp = 0, fn = 0;
       for (std::size_t k = 0; k < m.size(); ++k) {
-        const int u = std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.x)), 0,
-                                 f.truth.cols - 1);
-        const int v = std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.y)), 0,
-                                 f.truth.rows - 1);
+        const int u =
+            std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.x)), 0, f.truth.cols - 1);
+        const int v =
+            std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.y)), 0, f.truth.rows - 1);
         if (f.truth.at<std::uint8_t>(v, u) == 0U) continue;
         tp += m[k] != 0U ? 1 : 0;
         fn += m[k] == 0U ? 1 : 0;
@@ -229,9 +230,9 @@ TEST(GeometricMotion, StaticRoomStaysClean) {
 // static keypoints, which must stay low whatever the camera motion.
 TEST(GeometricMotion, SyntheticScenariosAgainstMasks) {
   using ds3d::synth::Scenario;
-  for (const Scenario sc : {Scenario::kWalkingXyz, Scenario::kWalkingStatic,
-                            Scenario::kWalkingHalfsphere, Scenario::kWalkingRpy,
-                            Scenario::kSittingStatic, Scenario::kSittingXyz}) {
+  for (const Scenario sc :
+       {Scenario::kWalkingXyz, Scenario::kWalkingStatic, Scenario::kWalkingHalfsphere,
+        Scenario::kWalkingRpy, Scenario::kSittingStatic, Scenario::kSittingXyz}) {
     const Counts c = run_synthetic(sc, 60);
     const std::int64_t static_keypoints = c.keypoints - c.tp - c.fn;
     const std::int64_t mask_px = c.mask_on + c.mask_off;

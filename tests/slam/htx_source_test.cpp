@@ -275,7 +275,8 @@ TEST(HtxSource, FixtureWeightsRunThroughThePipelineDeterministically) {
   const auto run_once = [&] {
     // min_score 0 and every class: random weights give low scores, and the point here is that
     // every box the source reports reaches the masker.
-    auto src = std::make_shared<HtxSource>(detector, HtxSourceParams{.min_score = 0.0F, .classes = {}});
+    auto src =
+        std::make_shared<HtxSource>(detector, HtxSourceParams{.min_score = 0.0F, .classes = {}});
     auto masker = std::make_shared<ds3d::slam::HdbscanMasker>();
     ds3d::slam::FrontendConfig cfg;
     cfg.camera = scene.options().camera;
@@ -346,11 +347,11 @@ TEST(CompositeSource, SecondSourceSeesTheFrameWithoutTheFirstsObjects) {
   ASSERT_EQ(o.boxes_2d.size(), 1U);
   ASSERT_EQ(o.scores.size(), 1U);
   ASSERT_EQ(o.boxes_3d.size(), 1U);
-  EXPECT_EQ(cv::countNonZero(f.depth != 10000), 0);               // caller's image untouched
-  EXPECT_EQ(cv::countNonZero(a->seen_depth != 10000), 0);         // first sees everything
-  EXPECT_EQ(b->seen_depth.at<std::uint16_t>(140, 125), 0);        // inside the first's box
-  EXPECT_EQ(b->seen_depth.at<std::uint16_t>(300, 400), 10000);    // elsewhere
-  EXPECT_EQ(b->seen_depth.at<std::uint16_t>(140, 160), 10000);    // right of the box
+  EXPECT_EQ(cv::countNonZero(f.depth != 10000), 0);             // caller's image untouched
+  EXPECT_EQ(cv::countNonZero(a->seen_depth != 10000), 0);       // first sees everything
+  EXPECT_EQ(b->seen_depth.at<std::uint16_t>(140, 125), 0);      // inside the first's box
+  EXPECT_EQ(b->seen_depth.at<std::uint16_t>(300, 400), 10000);  // elsewhere
+  EXPECT_EQ(b->seen_depth.at<std::uint16_t>(140, 160), 10000);  // right of the box
   EXPECT_THROW(ds3d::slam::CompositeSource(a, nullptr), ds3d::InvalidArgument);
 }
 
@@ -449,8 +450,9 @@ TEST(DynamicSources, MakeHtxAndCompositeFromSpec) {
       EXPECT_NE(std::string(e.what()).find(cands[0].string()), std::string::npos) << e.what();
     }
   } else {
-    EXPECT_EQ(ds3d::slam::find_default_weights(), *std::find_if(cands.begin(), cands.end(),
-                                                                [](const fs::path& p) { return fs::exists(p); }));
+    EXPECT_EQ(
+        ds3d::slam::find_default_weights(),
+        *std::find_if(cands.begin(), cands.end(), [](const fs::path& p) { return fs::exists(p); }));
   }
 }
 

@@ -27,7 +27,10 @@ cv::Mat textured_image(std::uint64_t seed, int w = 640, int h = 480) {
     if (i % 2 == 0) {
       cv::circle(img, c, static_cast<int>(rng.uniform(2, 12)), col, cv::FILLED);
     } else {
-      cv::rectangle(img, {c.x, c.y, static_cast<int>(rng.uniform(3, 25)), static_cast<int>(rng.uniform(3, 25))}, col, cv::FILLED);
+      cv::rectangle(
+          img,
+          {c.x, c.y, static_cast<int>(rng.uniform(3, 25)), static_cast<int>(rng.uniform(3, 25))},
+          col, cv::FILLED);
     }
   }
   cv::GaussianBlur(img, img, {3, 3}, 0.8);
@@ -102,8 +105,9 @@ TEST(OrbExtractor, RotatedImageGivesMatchingDescriptors) {
     int best = 257;
     std::size_t bj = 0;
     for (std::size_t j = 0; j < b.size(); ++j) {
-      const int d = ds3d::slam::descriptor_distance(a.descriptors.ptr<std::uint8_t>(static_cast<int>(i)),
-                                                    b.descriptors.ptr<std::uint8_t>(static_cast<int>(j)));
+      const int d =
+          ds3d::slam::descriptor_distance(a.descriptors.ptr<std::uint8_t>(static_cast<int>(i)),
+                                          b.descriptors.ptr<std::uint8_t>(static_cast<int>(j)));
       if (d < best) {
         best = d;
         bj = j;
@@ -142,7 +146,8 @@ TEST(OrbExtractor, AttachesDepthAndUndistorts) {
       EXPECT_TRUE(f.is_close(i));
     }
     // Re-distorting the undistorted pixel gives back the raw keypoint.
-    const Eigen::Vector2d xn((f.undistorted[i].x() - cam.cx) / cam.fx, (f.undistorted[i].y() - cam.cy) / cam.fy);
+    const Eigen::Vector2d xn((f.undistorted[i].x() - cam.cx) / cam.fx,
+                             (f.undistorted[i].y() - cam.cy) / cam.fy);
     const Eigen::Vector2d xd = cam.distort(xn);
     EXPECT_NEAR(cam.fx * xd.x() + cam.cx, k.pt.x, 0.05);
     EXPECT_NEAR(cam.fy * xd.y() + cam.cy, k.pt.y, 0.05);
@@ -161,12 +166,15 @@ TEST(OrbExtractor, BlackAndFlatImagesGiveNoFeatures) {
 TEST(OrbExtractor, RejectsBadInput) {
   const OrbExtractor ex;
   const auto cam = plain_camera();
-  EXPECT_THROW((void)ex.extract(cv::Mat::zeros(480, 640, CV_32FC1), {}, cam), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ex.extract(cv::Mat::zeros(480, 640, CV_32FC1), {}, cam),
+               ds3d::InvalidArgument);
   EXPECT_THROW((void)ex.extract(cv::Mat::zeros(240, 320, CV_8UC3), {}, cam), ds3d::InvalidArgument);
-  EXPECT_THROW((void)ex.extract(cv::Mat::zeros(480, 640, CV_8UC3), cv::Mat::zeros(480, 640, CV_32FC1), cam),
-               ds3d::InvalidArgument);
-  EXPECT_THROW((void)ex.extract(cv::Mat::zeros(480, 640, CV_8UC3), cv::Mat::zeros(240, 640, CV_16UC1), cam),
-               ds3d::InvalidArgument);
+  EXPECT_THROW(
+      (void)ex.extract(cv::Mat::zeros(480, 640, CV_8UC3), cv::Mat::zeros(480, 640, CV_32FC1), cam),
+      ds3d::InvalidArgument);
+  EXPECT_THROW(
+      (void)ex.extract(cv::Mat::zeros(480, 640, CV_8UC3), cv::Mat::zeros(240, 640, CV_16UC1), cam),
+      ds3d::InvalidArgument);
   OrbParams p;
   p.num_features = 0;
   EXPECT_THROW(OrbExtractor{p}, ds3d::InvalidArgument);

@@ -22,7 +22,8 @@ using ds3d::slam::SlamFrontend;
 using ds3d::slam::TrackState;
 
 // Short synthetic sequences (a second or two of CI each).
-std::vector<ds3d::synth::SynthFrame> render(ds3d::synth::Scenario s, int frames, std::uint64_t seed = 1) {
+std::vector<ds3d::synth::SynthFrame> render(ds3d::synth::Scenario s, int frames,
+                                            std::uint64_t seed = 1) {
   return ds3d::test::render_sequence(s, frames, seed);
 }
 
@@ -45,7 +46,7 @@ struct SlamRun {
 };
 
 SlamRun run(const std::vector<ds3d::synth::SynthFrame>& frames, FrontendConfig cfg, bool threaded,
-        std::shared_ptr<ds3d::slam::DynamicFeatureMasker> masker = nullptr) {
+            std::shared_ptr<ds3d::slam::DynamicFeatureMasker> masker = nullptr) {
   SlamFrontend slam(cfg, nullptr, std::move(masker));
   std::size_t i = 0;
   const auto next = [&]() -> std::optional<FrameInput> {
@@ -96,7 +97,8 @@ TEST(SlamFrontend, FusionKeepsAccuracyAndDeterminism) {
   EXPECT_LE(a.ate, 0.005);
   ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
   for (std::size_t i = 0; i < a.trajectory.size(); ++i) {
-    EXPECT_TRUE(a.trajectory[i].T_world_cam.matrix() == b.trajectory[i].T_world_cam.matrix()) << "frame " << i;
+    EXPECT_TRUE(a.trajectory[i].T_world_cam.matrix() == b.trajectory[i].T_world_cam.matrix())
+        << "frame " << i;
   }
 }
 
@@ -117,7 +119,8 @@ TEST(SlamFrontend, PoseRefinementMovesOnlyNonKeyframes) {
   int moved = 0;
   int keyframes = 0;
   for (std::size_t i = 0; i < plain.trajectory.size(); ++i) {
-    const bool same = plain.trajectory[i].T_world_cam.matrix() == refined.trajectory[i].T_world_cam.matrix();
+    const bool same =
+        plain.trajectory[i].T_world_cam.matrix() == refined.trajectory[i].T_world_cam.matrix();
     if (plain.results[i].keyframe) {
       ++keyframes;
       EXPECT_TRUE(same) << "keyframe " << i << " moved";
@@ -125,7 +128,8 @@ TEST(SlamFrontend, PoseRefinementMovesOnlyNonKeyframes) {
       moved += same ? 0 : 1;
     }
     EXPECT_TRUE(refined.trajectory[i].T_world_cam.matrix().allFinite());
-    EXPECT_TRUE(refined.trajectory[i].T_world_cam.matrix() == refined_sync.trajectory[i].T_world_cam.matrix())
+    EXPECT_TRUE(refined.trajectory[i].T_world_cam.matrix() ==
+                refined_sync.trajectory[i].T_world_cam.matrix())
         << "frame " << i;
   }
   EXPECT_GE(keyframes, 2);
@@ -143,7 +147,8 @@ TEST(SlamFrontend, ThreadedPipelineGivesIdenticalPoses) {
   const SlamRun b = run(frames, sync, false);
   ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
   for (std::size_t i = 0; i < a.trajectory.size(); ++i) {
-    EXPECT_TRUE(a.trajectory[i].T_world_cam.matrix() == b.trajectory[i].T_world_cam.matrix()) << "frame " << i;
+    EXPECT_TRUE(a.trajectory[i].T_world_cam.matrix() == b.trajectory[i].T_world_cam.matrix())
+        << "frame " << i;
   }
 }
 
@@ -155,7 +160,7 @@ TEST(SlamFrontend, SurvivesBlackFramesDroppedFramesAndMissingDepth) {
     if (i >= 20 && i < 24) continue;  // dropped frames: a gap in time
     cv::Mat rgb = frames[i].rgb;
     cv::Mat depth = frames[i].depth;
-    if (i >= 30 && i < 33) rgb = cv::Mat::zeros(rgb.size(), rgb.type());   // black frames
+    if (i >= 30 && i < 33) rgb = cv::Mat::zeros(rgb.size(), rgb.type());        // black frames
     if (i >= 40 && i < 43) depth = cv::Mat::zeros(depth.size(), depth.type());  // no depth
     const auto r = slam.track(rgb, depth, frames[i].timestamp);
     EXPECT_TRUE(r.T_world_cam.matrix().allFinite());
@@ -173,8 +178,10 @@ TEST(SlamFrontend, TimeGoingBackwardsIsAnError) {
   const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 3, 6);
   SlamFrontend slam(synth_config());
   (void)slam.track(frames[1].rgb, frames[1].depth, frames[1].timestamp);
-  EXPECT_THROW((void)slam.track(frames[0].rgb, frames[0].depth, frames[0].timestamp), ds3d::InvalidArgument);
-  EXPECT_THROW((void)slam.track(frames[2].rgb, frames[2].depth, std::nan("")), ds3d::InvalidArgument);
+  EXPECT_THROW((void)slam.track(frames[0].rgb, frames[0].depth, frames[0].timestamp),
+               ds3d::InvalidArgument);
+  EXPECT_THROW((void)slam.track(frames[2].rgb, frames[2].depth, std::nan("")),
+               ds3d::InvalidArgument);
 }
 
 TEST(SlamFrontend, NoDepthAtStartDoesNotInitialize) {
@@ -207,10 +214,12 @@ TEST(SlamFrontend, RejectsBadConfigAndImages) {
   c.camera.fx = 0;
   EXPECT_THROW(SlamFrontend{c}, ds3d::InvalidArgument);
   SlamFrontend slam(synth_config());
-  EXPECT_THROW((void)slam.track(cv::Mat::zeros(10, 10, CV_8UC3), cv::Mat(), 0.0), ds3d::InvalidArgument);
+  EXPECT_THROW((void)slam.track(cv::Mat::zeros(10, 10, CV_8UC3), cv::Mat(), 0.0),
+               ds3d::InvalidArgument);
   ds3d::slam::PipelineOptions po;
   po.queue_capacity = 0;
-  EXPECT_THROW((void)ds3d::slam::run_pipeline(slam, [] { return std::optional<FrameInput>(); }, {}, po),
+  EXPECT_THROW((void)ds3d::slam::run_pipeline(
+                   slam, [] { return std::optional<FrameInput>(); }, {}, po),
                ds3d::InvalidArgument);
 }
 
@@ -222,7 +231,8 @@ class LeftHalfMasker final : public ds3d::slam::DynamicFeatureMasker {
                                  const ds3d::slam::DynamicObjects&) override {
     ++calls;
     std::vector<std::uint8_t> m(f.size());
-    for (std::size_t i = 0; i < f.size(); ++i) m[i] = f.keypoints[i].pt.x < static_cast<float>(frame.rgb.cols) / 2 ? 1 : 0;
+    for (std::size_t i = 0; i < f.size(); ++i)
+      m[i] = f.keypoints[i].pt.x < static_cast<float>(frame.rgb.cols) / 2 ? 1 : 0;
     return m;
   }
   [[nodiscard]] std::string name() const override { return "left-half"; }
@@ -246,7 +256,8 @@ TEST(SlamFrontend, DynamicMaskerRemovesKeypointsBeforeTracking) {
 TEST(SlamFrontend, MasksOfTheWrongSizeAreAnError) {
   class Bad final : public ds3d::slam::DynamicFeatureMasker {
    public:
-    std::vector<std::uint8_t> mask(const FrameInput&, const ds3d::PinholeCamera&, const ds3d::slam::OrbFeatures&,
+    std::vector<std::uint8_t> mask(const FrameInput&, const ds3d::PinholeCamera&,
+                                   const ds3d::slam::OrbFeatures&,
                                    const ds3d::slam::DynamicObjects&) override {
       return {1};
     }
@@ -254,7 +265,8 @@ TEST(SlamFrontend, MasksOfTheWrongSizeAreAnError) {
   };
   const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 1, 9);
   SlamFrontend slam(synth_config(), nullptr, std::make_shared<Bad>());
-  EXPECT_THROW((void)slam.track(frames[0].rgb, frames[0].depth, frames[0].timestamp), ds3d::InvalidArgument);
+  EXPECT_THROW((void)slam.track(frames[0].rgb, frames[0].depth, frames[0].timestamp),
+               ds3d::InvalidArgument);
 }
 
 TEST(SlamFrontend, OutputsMapAndKeyframes) {

@@ -20,7 +20,8 @@ using ds3d::WeightsFile;
 
 struct Expected {
   ds3d::Points3f points;
-  std::vector<float> boxes, proposals, objectness, class_prob, part_logits, centre_indices, query_indices;
+  std::vector<float> boxes, proposals, objectness, class_prob, part_logits, centre_indices,
+      query_indices;
   Eigen::Index num_boxes = 0;
 };
 
@@ -42,7 +43,9 @@ Expected load_expected(const SparseDetector& det) {
   return e;
 }
 
-SparseDetector tiny() { return SparseDetector::load(ds3d::test::data_path("htx/tiny_weights.safetensors")); }
+SparseDetector tiny() {
+  return SparseDetector::load(ds3d::test::data_path("htx/tiny_weights.safetensors"));
+}
 
 TEST(SparseDetector, MatchesPyTorchFixture) {
   const auto det = tiny();
@@ -59,8 +62,10 @@ TEST(SparseDetector, MatchesPyTorchFixture) {
   ASSERT_EQ(out.proposals.size(), e.objectness.size());
   for (std::size_t q = 0; q < out.proposals.size(); ++q) {
     const auto& b = out.proposals[q];
-    const float got[7] = {b.centre.x(), b.centre.y(), b.centre.z(), b.size.x(), b.size.y(), b.size.z(), b.yaw};
-    for (int k = 0; k < 7; ++k) EXPECT_NEAR(got[k], e.proposals[q * 7 + static_cast<std::size_t>(k)], kTol);
+    const float got[7] = {b.centre.x(), b.centre.y(), b.centre.z(), b.size.x(),
+                          b.size.y(),   b.size.z(),   b.yaw};
+    for (int k = 0; k < 7; ++k)
+      EXPECT_NEAR(got[k], e.proposals[q * 7 + static_cast<std::size_t>(k)], kTol);
     EXPECT_NEAR(b.objectness, e.objectness[q], kTol);
   }
   for (Eigen::Index i = 0; i < out.part_logits.rows(); ++i) {
@@ -77,21 +82,26 @@ TEST(SparseDetector, MatchesPyTorchFixture) {
   for (std::size_t q = 0; q < props.size(); ++q) {
     auto& b = props[q];
     b.centre = Eigen::Vector3f(e.proposals[q * 7], e.proposals[q * 7 + 1], e.proposals[q * 7 + 2]);
-    b.size = Eigen::Vector3f(e.proposals[q * 7 + 3], e.proposals[q * 7 + 4], e.proposals[q * 7 + 5]);
+    b.size =
+        Eigen::Vector3f(e.proposals[q * 7 + 3], e.proposals[q * 7 + 4], e.proposals[q * 7 + 5]);
     b.yaw = e.proposals[q * 7 + 6];
     b.objectness = e.objectness[q];
     const auto first = e.class_prob.begin() + static_cast<std::ptrdiff_t>(q * k);
-    b.label = static_cast<std::int32_t>(std::max_element(first, first + static_cast<std::ptrdiff_t>(k)) - first);
-    b.score = static_cast<float>(static_cast<double>(e.class_prob[q * k + static_cast<std::size_t>(b.label)]) *
-                                 static_cast<double>(b.objectness));
+    b.label = static_cast<std::int32_t>(
+        std::max_element(first, first + static_cast<std::ptrdiff_t>(k)) - first);
+    b.score = static_cast<float>(
+        static_cast<double>(e.class_prob[q * k + static_cast<std::size_t>(b.label)]) *
+        static_cast<double>(b.objectness));
   }
   const auto kept = det.postprocess(e.points, props);
   ASSERT_EQ(static_cast<Eigen::Index>(kept.size()), e.num_boxes);
   for (std::size_t r = 0; r < kept.size(); ++r) {
     const auto& b = props[kept[r]];
-    const float got[9] = {b.centre.x(), b.centre.y(), b.centre.z(), b.size.x(), b.size.y(), b.size.z(),
-                          b.yaw, b.score, static_cast<float>(b.label)};
-    for (int c = 0; c < 9; ++c) EXPECT_EQ(got[c], e.boxes[r * 9 + static_cast<std::size_t>(c)]) << r << "," << c;
+    const float got[9] = {b.centre.x(), b.centre.y(), b.centre.z(),
+                          b.size.x(),   b.size.y(),   b.size.z(),
+                          b.yaw,        b.score,      static_cast<float>(b.label)};
+    for (int c = 0; c < 9; ++c)
+      EXPECT_EQ(got[c], e.boxes[r * 9 + static_cast<std::size_t>(c)]) << r << "," << c;
   }
 }
 
@@ -124,8 +134,8 @@ TEST(SparseDetector, RejectsBadInput) {
 }
 
 TEST(SparseDetector, OutputsAreFiniteAndDecoded) {
-  const auto det = SparseDetector::from_weights(
-      WeightsFile::parse(ds3d::test::random_htx_file(ds3d::DetectorConfig::make_profile("fast"), 3)));
+  const auto det = SparseDetector::from_weights(WeightsFile::parse(
+      ds3d::test::random_htx_file(ds3d::DetectorConfig::make_profile("fast"), 3)));
   const auto pts = ds3d::test::htx_scene(4096, 2);
   const auto out = det.run(pts, {.num_threads = 2, .part_logits = true});
   EXPECT_EQ(out.proposals.size(), 64U);
@@ -159,7 +169,9 @@ TEST(SparseDetector, SameResultForAnyThreadCountAndConcurrentCalls) {
   std::vector<ds3d::DetectorOutput> outs(3);
   std::vector<std::thread> threads;
   for (int t = 0; t < 3; ++t) {
-    threads.emplace_back([&, t] { outs[static_cast<std::size_t>(t)] = det.run(pts, {.num_threads = t + 1, .part_logits = true}); });
+    threads.emplace_back([&, t] {
+      outs[static_cast<std::size_t>(t)] = det.run(pts, {.num_threads = t + 1, .part_logits = true});
+    });
   }
   for (auto& th : threads) th.join();
   for (const auto& o : outs) {
@@ -185,7 +197,8 @@ TEST(SparseDetector, FewerPointsThanTokens) {
 TEST(SparseDetector, RejectsInconsistentFiles) {
   const auto cfg = ds3d::DetectorConfig::make_profile("fast");
   auto tensors = ds3d::test::random_htx_tensors(cfg, 1);
-  const std::map<std::string, std::string> meta{{"format", "ds3d-htx"}, {"version", "1"}, {"config", cfg.to_json()}};
+  const std::map<std::string, std::string> meta{
+      {"format", "ds3d-htx"}, {"version", "1"}, {"config", cfg.to_json()}};
   auto expect_error = [](const std::string& bytes, const std::string& needle) {
     try {
       (void)SparseDetector::from_weights(WeightsFile::parse(bytes, "t"));
@@ -197,7 +210,8 @@ TEST(SparseDetector, RejectsInconsistentFiles) {
   {  // wrong shape names the tensor and both shapes
     auto t = tensors;
     t[0].shape = {16, 6};
-    expect_error(ds3d::serialize_safetensors(t, meta), "tensor 'pre_encoder.mlp.0.weight': shape [16, 6], expected [32, 3]");
+    expect_error(ds3d::serialize_safetensors(t, meta),
+                 "tensor 'pre_encoder.mlp.0.weight': shape [16, 6], expected [32, 3]");
   }
   {  // missing tensor
     auto t = tensors;

@@ -10,9 +10,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
-#include <vector>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <opencv2/features2d.hpp>
 

@@ -36,7 +36,8 @@ void expect_io_error(const std::string& bytes, const std::string& needle) {
 
 TEST(WeightsIo, RoundTrip) {
   const std::string bytes = ds3d::serialize_safetensors(
-      {{"a", {2, 3}, {1, 2, 3, 4, 5, 6}}, {"s", {}, {2.5F}}, {"e", {0}, {}}}, {{"format", "x"}, {"k\"ey", "v\n"}});
+      {{"a", {2, 3}, {1, 2, 3, 4, 5, 6}}, {"s", {}, {2.5F}}, {"e", {0}, {}}},
+      {{"format", "x"}, {"k\"ey", "v\n"}});
   std::uint64_t header_len = 0;
   std::memcpy(&header_len, bytes.data(), 8);
   EXPECT_EQ((8 + header_len) % 8, 0U);  // data buffer starts 8-byte aligned
@@ -89,12 +90,15 @@ TEST(WeightsIo, RejectsBadEntries) {
                   "tensor 't': data_offsets [0, 16] out of range");
   expect_io_error(file_with_header(R"({"t":{"dtype":"F32","shape":[2],"data_offsets":[8,0]}})", 8),
                   "end 0 < begin 8");
-  expect_io_error(file_with_header(R"({"t":{"dtype":"F32","shape":[2]}})", 8), "needs dtype, shape");
-  expect_io_error(file_with_header(R"({"t":{"dtype":"F32","shape":[2],"data_offsets":[0,8],"x":1}})", 8),
-                  "unknown key 'x'");
-  expect_io_error(file_with_header(
-                      R"({"t":{"dtype":"F32","shape":[4611686018427387904,4],"data_offsets":[0,8]}})", 8),
-                  "tensor 't'");
+  expect_io_error(file_with_header(R"({"t":{"dtype":"F32","shape":[2]}})", 8),
+                  "needs dtype, shape");
+  expect_io_error(
+      file_with_header(R"({"t":{"dtype":"F32","shape":[2],"data_offsets":[0,8],"x":1}})", 8),
+      "unknown key 'x'");
+  expect_io_error(
+      file_with_header(
+          R"({"t":{"dtype":"F32","shape":[4611686018427387904,4],"data_offsets":[0,8]}})", 8),
+      "tensor 't'");
 }
 
 TEST(WeightsIo, RejectsOverlapsAndHoles) {
@@ -117,7 +121,8 @@ TEST(WeightsIo, CheckedAccess) {
     (void)w.f32("a", {3});
     ADD_FAILURE();
   } catch (const IoError& e) {
-    EXPECT_NE(std::string(e.what()).find("tensor 'a': shape [2], expected [3]"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("tensor 'a': shape [2], expected [3]"), std::string::npos)
+        << e.what();
   }
   EXPECT_THROW((void)w.f32("b", {2}), IoError);
   // A NaN weight never reaches the detector.
@@ -128,8 +133,10 @@ TEST(WeightsIo, CheckedAccess) {
 }
 
 TEST(WeightsIo, AnyTruncationIsAnError) {
-  const std::string bytes = ds3d::test::read_file(ds3d::test::data_path("htx/tiny_weights.safetensors"));
-  for (std::size_t cut : {std::size_t{0}, std::size_t{5}, std::size_t{100}, bytes.size() / 2, bytes.size() - 1}) {
+  const std::string bytes =
+      ds3d::test::read_file(ds3d::test::data_path("htx/tiny_weights.safetensors"));
+  for (std::size_t cut :
+       {std::size_t{0}, std::size_t{5}, std::size_t{100}, bytes.size() / 2, bytes.size() - 1}) {
     EXPECT_THROW((void)WeightsFile::parse(bytes.substr(0, cut)), IoError) << cut;
   }
 }

@@ -16,7 +16,8 @@
 namespace ds3d::test {
 
 /// Tensors of a random detector for `config`: weights ~ U(+-1/sqrt(fan_in)), LayerNorm gains 1.
-inline std::vector<NamedTensor> random_htx_tensors(const DetectorConfig& config, std::uint64_t seed) {
+inline std::vector<NamedTensor> random_htx_tensors(const DetectorConfig& config,
+                                                   std::uint64_t seed) {
   Rng rng(seed);
   std::vector<NamedTensor> out;
   for (const auto& [name, shape] : SparseDetector::expected_tensors(config)) {
@@ -37,8 +38,9 @@ inline std::vector<NamedTensor> random_htx_tensors(const DetectorConfig& config,
 
 /// The bytes of a complete random weights file.
 inline std::string random_htx_file(const DetectorConfig& config, std::uint64_t seed) {
-  return serialize_safetensors(random_htx_tensors(config, seed),
-                               {{"format", "ds3d-htx"}, {"version", "1"}, {"config", config.to_json()}});
+  return serialize_safetensors(
+      random_htx_tensors(config, seed),
+      {{"format", "ds3d-htx"}, {"version", "1"}, {"config", config.to_json()}});
 }
 
 /// A person-sized column, a table and two walls: n points, gravity-aligned (Z up).

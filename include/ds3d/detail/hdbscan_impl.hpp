@@ -459,11 +459,10 @@ inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const Hdbscan
                                  res.core_distances);
   } else {
     const auto kk = static_cast<std::size_t>(k) + 1;
-    res.core_distances =
-        detail::knn_lane_width(dim, kk, detail::KnnLanes::kAuto) > 0
-            ? detail::boruvka_core_distances(data.data(), n, dim, static_cast<std::size_t>(k),
-                                             threads)
-            : detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads);
+    res.core_distances = detail::knn_lane_width(dim, kk, detail::KnnLanes::kAuto) > 0
+                             ? detail::boruvka_core_distances(data.data(), n, dim,
+                                                              static_cast<std::size_t>(k), threads)
+                             : detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads);
     mst = detail::prim_dense(data.data(), n, dim, res.core_distances);
   }
   detail::hdbscan_from_mst(res, std::move(mst), params, n);

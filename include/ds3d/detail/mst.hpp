@@ -22,8 +22,8 @@
 #include <immintrin.h>
 #endif
 
-#include "ds3d/detail/kdtree_nd.hpp"
 #include "ds3d/detail/box_bounds.hpp"
+#include "ds3d/detail/kdtree_nd.hpp"
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/hdbscan.hpp"
 
@@ -1083,8 +1083,8 @@ class BoruvkaKdTree {
   // knn_group_avx2 with eight queries, one per AVX-512 lane (the list in kL of the 32 zmm
   // registers). Run-time dispatch; written without lambdas, which would not inherit the target.
   [[nodiscard]] __attribute__((target("avx512f"))) __m512d box2_avx512(std::size_t k, __m512d qx,
-                                                                      __m512d qy,
-                                                                      __m512d qz) const {
+                                                                       __m512d qy,
+                                                                       __m512d qz) const {
     const double* lo = lo_.data() + k * 3;
     const double* hi = hi_.data() + k * 3;
     const __m512d zero = _mm512_setzero_pd();
@@ -1225,8 +1225,8 @@ class BoruvkaKdTree {
       b2 = _mm256_add_pd(b2, no_contract256(_mm256_mul_pd(gy, gy)));
       b2 = _mm256_add_pd(b2, no_contract256(_mm256_mul_pd(gz, gz)));
       const __m256d lb = _mm256_max_pd(vcs, _mm256_set1_pd(nd.min_core));
-      const __m256d can = _mm256_and_pd(_mm256_cmp_pd(b2, vrs, _CMP_LE_OQ),
-                                        _mm256_cmp_pd(lb, bw, _CMP_LT_OQ));
+      const __m256d can =
+          _mm256_and_pd(_mm256_cmp_pd(b2, vrs, _CMP_LE_OQ), _mm256_cmp_pd(lb, bw, _CMP_LT_OQ));
       if (_mm256_movemask_pd(can) == 0) continue;
       const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
       for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
@@ -1280,8 +1280,8 @@ class BoruvkaKdTree {
       const Node& nd = nodes_[leaf];
       const __m512d b2 = box2_avx512(leaf, qx, qy, qz);
       const __m512d lb = _mm512_max_pd(vcs, _mm512_set1_pd(nd.min_core));
-      const __mmask8 can = _mm512_cmp_pd_mask(b2, vrs, _CMP_LE_OQ) &
-                           _mm512_cmp_pd_mask(lb, bw, _CMP_LT_OQ);
+      const __mmask8 can =
+          _mm512_cmp_pd_mask(b2, vrs, _CMP_LE_OQ) & _mm512_cmp_pd_mask(lb, bw, _CMP_LT_OQ);
       if (can == 0) continue;
       const double* p = pts_.data() + static_cast<std::size_t>(nd.begin) * 3;
       for (auto t = nd.begin; t < nd.end; ++t, p += 3) {
@@ -1360,19 +1360,35 @@ class BoruvkaKdTree {
           if (width == 8) {
 #if defined(DS3D_HDBSCAN_AVX512)
             switch (kl) {
-              case 4: knn_group_avx512<4>(p0, cnt, kk, out, seen); break;
-              case 8: knn_group_avx512<8>(p0, cnt, kk, out, seen); break;
-              case 12: knn_group_avx512<12>(p0, cnt, kk, out, seen); break;
-              default: knn_group_avx512<16>(p0, cnt, kk, out, seen); break;
+              case 4:
+                knn_group_avx512<4>(p0, cnt, kk, out, seen);
+                break;
+              case 8:
+                knn_group_avx512<8>(p0, cnt, kk, out, seen);
+                break;
+              case 12:
+                knn_group_avx512<12>(p0, cnt, kk, out, seen);
+                break;
+              default:
+                knn_group_avx512<16>(p0, cnt, kk, out, seen);
+                break;
             }
 #endif
           } else {
 #if defined(__AVX2__)
             switch (kl) {
-              case 4: knn_group_avx2<4>(p0, cnt, kk, out, seen); break;
-              case 8: knn_group_avx2<8>(p0, cnt, kk, out, seen); break;
-              case 12: knn_group_avx2<12>(p0, cnt, kk, out, seen); break;
-              default: knn_group_avx2<16>(p0, cnt, kk, out, seen); break;
+              case 4:
+                knn_group_avx2<4>(p0, cnt, kk, out, seen);
+                break;
+              case 8:
+                knn_group_avx2<8>(p0, cnt, kk, out, seen);
+                break;
+              case 12:
+                knn_group_avx2<12>(p0, cnt, kk, out, seen);
+                break;
+              default:
+                knn_group_avx2<16>(p0, cnt, kk, out, seen);
+                break;
             }
 #endif
           }
@@ -1476,10 +1492,9 @@ class BoruvkaKdTree {
     if (e - b <= kKeyedMax) {
       auto* kv = keyed_.data();
       for (auto i = b; i < e; ++i) kv[i - b] = {data[order[i] * dim_ + split], order[i]};
-      std::nth_element(
-          kv, kv + (mid - b), kv + (e - b),
-          [](const std::pair<double, std::uint32_t>& x,
-             const std::pair<double, std::uint32_t>& y) { return x.first < y.first; });
+      std::nth_element(kv, kv + (mid - b), kv + (e - b),
+                       [](const std::pair<double, std::uint32_t>& x,
+                          const std::pair<double, std::uint32_t>& y) { return x.first < y.first; });
       for (auto i = b; i < e; ++i) order[i] = kv[i - b].second;
     } else {
       std::nth_element(order.begin() + b, order.begin() + mid, order.begin() + e,
@@ -1630,8 +1645,7 @@ class BoruvkaKdTree {
   // box_dist2(q, a) and box_dist2(q, b) (bitwise: for D = 3 with AVX2 both boxes' gaps are
   // squared in two vectors whose fourth lane is 0, and one horizontal add gives
   // (g0² + g1²) + g2² for each, box_dist2's order).
-  void box_dist2_pair(const double* q, std::size_t a, std::size_t b, double& da,
-                      double& db) const {
+  void box_dist2_pair(const double* q, std::size_t a, std::size_t b, double& da, double& db) const {
 #if defined(__AVX2__)
     if (dim_ == 3) {
       const __m256i m3 = _mm256_set_epi64x(0, -1, -1, -1);
@@ -1738,7 +1752,7 @@ class BoruvkaKdTree {
   std::size_t n_, dim_;
   int threads_;
   KnnLanes lanes_;
-  bool seeds_ = true;  // knn_and_seeds also seeds the candidate edges
+  bool seeds_ = true;                // knn_and_seeds also seeds the candidate edges
   std::vector<std::uint32_t> perm_;  // tree position -> point id
   std::vector<double> pts_;          // coordinates in tree order
   std::vector<double> core_;         // core distances in tree order

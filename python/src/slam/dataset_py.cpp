@@ -50,7 +50,8 @@ void bind_dataset(py::module_& m) {
   py::class_<ds3d::RgbdDataset>(
       m, "RgbdDataset",
       "A TUM RGB-D / Bonn RGB-D Dynamic folder read frame by frame (include/ds3d/dataset.hpp).\n\n"
-      "RgbdDataset(directory (str or path), max_difference=0.02, offset=0.0, camera=None): reads rgb.txt and\n"
+      "RgbdDataset(directory (str or path), max_difference=0.02, offset=0.0, camera=None): reads "
+      "rgb.txt and\n"
       "depth.txt and associates them like the TUM associate.py (greedy, |t_rgb - (t_depth +\n"
       "offset)| < max_difference [s]); no image is read until a frame is asked for. camera\n"
       "overrides camera.txt / the default (tum_ros): a dict, a preset name or a camera.txt path.\n"
@@ -69,7 +70,9 @@ void bind_dataset(py::module_& m) {
       .def("__len__", &ds3d::RgbdDataset::size)
       .def(
           "__getitem__",
-          [](const ds3d::RgbdDataset& ds, py::ssize_t i) { return frame_dict(ds, wrap_index(ds, i)); },
+          [](const ds3d::RgbdDataset& ds, py::ssize_t i) {
+            return frame_dict(ds, wrap_index(ds, i));
+          },
           py::arg("i"), "Frame i as a dict (see the class doc); IndexError outside [-len, len).")
       .def(
           "frame", [](const ds3d::RgbdDataset& ds, std::size_t i) { return frame_dict(ds, i); },

@@ -14,8 +14,8 @@
 #include <optional>
 #include <string>
 
-#include "ds3d/dynamic_sources.hpp"
 #include "../numpy_util.hpp"
+#include "ds3d/dynamic_sources.hpp"
 #include "slam_py_util.hpp"
 
 namespace py = pybind11;
@@ -40,8 +40,9 @@ std::vector<cv::Rect2f> rects_from(const char* fn, const py::handle& obj) {
     const float x0 = r(i, 0), y0 = r(i, 1), x1 = r(i, 2), y1 = r(i, 3);
     DS3D_CHECK(std::isfinite(x0) && std::isfinite(y0) && std::isfinite(x1) && std::isfinite(y1) &&
                    x1 >= x0 && y1 >= y0,
-               fn, ": boxes_2d row ", i, " must be finite with x_max >= x_min and y_max >= y_min (got [",
-               x0, ", ", y0, ", ", x1, ", ", y1, "])");
+               fn, ": boxes_2d row ", i,
+               " must be finite with x_max >= x_min and y_max >= y_min (got [", x0, ", ", y0, ", ",
+               x1, ", ", y1, "])");
     out.emplace_back(x0, y0, x1 - x0, y1 - y0);
   }
   return out;
@@ -133,12 +134,14 @@ void bind_dynamic_sources(py::module_& m) {
       "What a dynamic-object source found in one frame (include/ds3d/slam_frontend.hpp).\n"
       "DynamicObjects(boxes_2d=None, scores=None, boxes_3d=None, pixel_mask=None) builds one from\n"
       "your own detector's output (ValueError on bad shapes, non-finite values, inverted boxes).")
-      .def(py::init(&objects_from), py::arg("boxes_2d") = py::none(), py::arg("scores") = py::none(),
-           py::arg("boxes_3d") = py::none(), py::arg("pixel_mask") = py::none())
+      .def(py::init(&objects_from), py::arg("boxes_2d") = py::none(),
+           py::arg("scores") = py::none(), py::arg("boxes_3d") = py::none(),
+           py::arg("pixel_mask") = py::none())
       .def_property_readonly(
           "boxes_2d",
           [](const DynamicObjects& o) {
-            py::array_t<float> a({static_cast<py::ssize_t>(o.boxes_2d.size()), static_cast<py::ssize_t>(4)});
+            py::array_t<float> a(
+                {static_cast<py::ssize_t>(o.boxes_2d.size()), static_cast<py::ssize_t>(4)});
             auto r = a.mutable_unchecked<2>();
             for (std::size_t i = 0; i < o.boxes_2d.size(); ++i) {
               const auto& b = o.boxes_2d[i];
@@ -162,12 +165,14 @@ void bind_dynamic_sources(py::module_& m) {
             auto r = a.mutable_unchecked<3>();
             for (py::ssize_t b = 0; b < k; ++b) {
               for (int i = 0; i < 8; ++i) {
-                for (int j = 0; j < 3; ++j) r(b, i, j) = o.boxes_3d[static_cast<std::size_t>(b)](i, j);
+                for (int j = 0; j < 3; ++j)
+                  r(b, i, j) = o.boxes_3d[static_cast<std::size_t>(b)](i, j);
               }
             }
             return a;
           },
-          "(K, 8, 3) float32 corners of 3-D boxes in the camera frame (x right, y down, z forward) [m].")
+          "(K, 8, 3) float32 corners of 3-D boxes in the camera frame (x right, y down, z forward) "
+          "[m].")
       .def_property_readonly(
           "pixel_mask",
           [](const DynamicObjects& o) -> py::object {
@@ -184,8 +189,8 @@ void bind_dynamic_sources(py::module_& m) {
           "True when nothing was found (no box, no dynamic pixel).")
       .def("__repr__", [](const DynamicObjects& o) {
         return "DynamicObjects(" + std::to_string(o.boxes_2d.size()) + " 2-D boxes, " +
-               std::to_string(o.boxes_3d.size()) + " 3-D boxes, pixel_mask=" +
-               (o.pixel_mask.empty() ? "None" : "yes") + ")";
+               std::to_string(o.boxes_3d.size()) +
+               " 3-D boxes, pixel_mask=" + (o.pixel_mask.empty() ? "None" : "yes") + ")";
       });
 
   py::class_<DynamicObjectSource, std::shared_ptr<DynamicObjectSource>>(
@@ -199,10 +204,13 @@ void bind_dynamic_sources(py::module_& m) {
            "(camera['depth_scale'] units per metre, 0 = missing) or None; timestamp [s], finite,\n"
            "non-decreasing; camera: dict (as ds3d.camera_preset), preset name or camera.txt path,\n"
            "of the image size; index: position in the sequence (seeds the htx draw). Returns\n"
-           "ds3d.DynamicObjects; releases the GIL. The source gets its own copy of the images (it may\n"
-           "keep past frames), so the arrays may be reused afterwards. ValueError for a wrong dtype,\n"
+           "ds3d.DynamicObjects; releases the GIL. The source gets its own copy of the images (it "
+           "may\n"
+           "keep past frames), so the arrays may be reused afterwards. ValueError for a wrong "
+           "dtype,\n"
            "shape or size.")
-      .def_property_readonly("name", &DynamicObjectSource::name, "short name, e.g. 'file', 'htx+geometric'");
+      .def_property_readonly("name", &DynamicObjectSource::name,
+                             "short name, e.g. 'file', 'htx+geometric'");
 
   py::class_<FileSourceParams>(m, "FileSourceParams", "Options of ds3d.FileSource.")
       .def(py::init<>())
@@ -219,16 +227,17 @@ void bind_dynamic_sources(py::module_& m) {
       "The 'file:PATH' source: boxes per timestamp from a JSON-lines detections file "
       "(include/ds3d/detections.hpp), so that any offline detector drives ds3d.")
       .def(py::init([](const py::object& path, const FileSourceParams& params) {
-             return std::make_shared<FileSource>(std::filesystem::path(pu::path_from(path)), params);
+             return std::make_shared<FileSource>(std::filesystem::path(pu::path_from(path)),
+                                                 params);
            }),
-           py::arg("path"),
-           py::arg("params") = FileSourceParams{},
+           py::arg("path"), py::arg("params") = FileSourceParams{},
            "Reads the file once. RuntimeError naming file and line for a malformed file; "
            "ValueError for bad params.")
       .def_static(
           "from_text",
           [](const std::string& text, const FileSourceParams& params) {
-            return std::make_shared<FileSource>(ds3d::DetectionsFile::parse(text, "<text>"), params);
+            return std::make_shared<FileSource>(ds3d::DetectionsFile::parse(text, "<text>"),
+                                                params);
           },
           py::arg("text"), py::arg("params") = FileSourceParams{},
           "A source from the content of a detections file (one JSON object per line).")
@@ -242,7 +251,8 @@ void bind_dynamic_sources(py::module_& m) {
       "The 'hdbscan' masker (3DS-SLAM §III-C): box-gated HDBSCAN on the ORB keypoints, boxes from\n"
       "DynamicObjects (2-D boxes, projected 3-D boxes) plus its pixel_mask. Keeps regions across\n"
       "frames: one instance per sequence, frames in order.")
-      .def(py::init<const ds3d::DynamicFilterParams&>(), py::arg("params") = ds3d::DynamicFilterParams{})
+      .def(py::init<const ds3d::DynamicFilterParams&>(),
+           py::arg("params") = ds3d::DynamicFilterParams{})
       .def(
           "mask",
           [](HdbscanMasker& masker, const py::object& rgb, const py::object& depth,
@@ -285,7 +295,8 @@ void bind_dynamic_sources(py::module_& m) {
       py::arg("min_score") = py::none(),
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric') or 'A&B' (A's boxes only where B sees\n"
-      "motion, e.g. 'htx&geometric'); weights = htx weights file ('' = the default model), detect_every\n"
+      "motion, e.g. 'htx&geometric'); weights = htx weights file ('' = the default model), "
+      "detect_every\n"
       ">= 1 and min_score in [0, 1] for htx. ValueError for an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");
 
@@ -301,7 +312,8 @@ void bind_dynamic_sources(py::module_& m) {
 
   m.def(
       "keypoint_array",
-      [](const ds3d::slam::OrbFeatures& features, const py::object& depth, const py::object& camera) {
+      [](const ds3d::slam::OrbFeatures& features, const py::object& depth,
+         const py::object& camera) {
         constexpr const char* fn = "ds3d.keypoint_array";
         py::array_t<std::uint16_t, py::array::c_style> keep;
         const cv::Mat d = pu::depth_view(fn, depth, keep);

@@ -23,53 +23,59 @@ using ds3d::slam::GeometricMotionStats;
 // the properties and __repr__, so that a new field needs one line here.
 #define DS3D_GEOMETRIC_PARAMS(X)                                                                  \
   X(num_features, "ORB features of the source's own extractor, > 0")                              \
-  X(reference_gap, "frames between the current and the reference frame, >= 1")                   \
+  X(reference_gap, "frames between the current and the reference frame, >= 1")                    \
   X(max_match_distance, "Hamming distance of accepted matches, in [1, 256]")                      \
   X(match_ratio, "best / second-best Hamming distance below this (Lowe's ratio), in (0, 1]")      \
-  X(ransac_iterations, "PnP-RANSAC iterations, >= 1")                                              \
+  X(ransac_iterations, "PnP-RANSAC iterations, >= 1")                                             \
   X(chi2_2dof, "chi2 (2 dof, 95 %) of the pose inlier test, > 0")                                 \
   X(moving_chi2, "chi2 (3 dof, 99.9 %): a keypoint moves above this, > 0")                        \
   X(min_pixel_sigma, "floor of the per-frame pixel noise sigma_px [px], > 0")                     \
   X(depth_noise, "sigma(z) = depth_noise * z^2 [1/m], >= 0")                                      \
-  X(min_depth_residual, "depth residuals below this never flag (sigma(z) floor = this / 3) [m], > 0") \
+  X(min_depth_residual,                                                                           \
+    "depth residuals below this never flag (sigma(z) floor = this / 3) [m], > 0")                 \
   X(depth_window, "half-size of the depth-spread window at keypoints [px], >= 0")                 \
   X(min_inlier_ratio, "trusted pose: inliers / matches at least this, in [0, 1]")                 \
   X(min_pose_inliers, "trusted pose: at least this many inliers, >= 6")                           \
-  X(warp_gap, "frames between the current frame and the reference of the dense warp, >= 1")      \
+  X(warp_gap, "frames between the current frame and the reference of the dense warp, >= 1")       \
   X(warp_stride, "grid step of the dense depth warp [px], >= 1")                                  \
   X(warp_window, "half-size of the depth-edge / min-depth window of the warp [px], >= 0")         \
   X(warp_chi2, "chi2 (1 dof, 99.9 %) of the warp's depth test, > 0")                              \
   X(min_warp_area, "smallest warp candidate (metric area of its pixels) [m^2], > 0")              \
-  X(max_speed, "fastest object motion the warp explains as a receding surface [m/s], >= 0 (0 = off)") \
+  X(max_speed,                                                                                    \
+    "fastest object motion the warp explains as a receding surface [m/s], >= 0 (0 = off)")        \
   X(image_scale, "the source's ORB runs on the image resized by this factor, in (0, 1]")          \
   X(max_depth, "depths beyond this are ignored [m], > 0")                                         \
   X(min_cluster_size, "HDBSCAN min_cluster_size (moving keypoints), >= 2")                        \
   X(min_samples, "HDBSCAN min_samples, >= 1")                                                     \
   X(min_support, "moving / tested keypoints in a cluster's region, in (0, 1]")                    \
-  X(min_band_support, "support test of warp components (share of the tested cells within one cell that moved), in [0, 1]; 0 (default) = none") \
+  X(min_band_support,                                                                             \
+    "support test of warp components (share of the tested cells within one cell that moved), in " \
+    "[0, 1]; 0 (default) = none")                                                                 \
   X(max_object_size, "clusters larger than this in x, y or z are not objects [m], > 0")           \
-  X(max_object_width, "widest object segment along the floor [m], > 0")                            \
+  X(max_object_width, "widest object segment along the floor [m], > 0")                           \
   X(box_margin, "object boxes grow by this in x, y and z [m], >= 0")                              \
   X(hold_frames, "frames an object is kept after its last motion evidence, >= 0")                 \
-  X(segment_objects, "grow each object over the depth-continuous surface around its evidence and report it as DynamicObjects.pixel_mask (False: boxes only)")
+  X(segment_objects,                                                                              \
+    "grow each object over the depth-continuous surface around its evidence and report it as "    \
+    "DynamicObjects.pixel_mask (False: boxes only)")
 
 // Every field of GeometricMotionStats except the pose (bound separately as a 4x4 array).
-#define DS3D_GEOMETRIC_STATS(X)                                                                   \
-  X(pose_ok, "a reference was available and the pose is trusted")                                 \
-  X(num_matches, "descriptor matches with the reference (reference depth)")                        \
-  X(num_pose_inliers, "PnP-RANSAC inliers")                                                        \
-  X(num_tested, "keypoints with depth in both views that were chi2-tested")                       \
-  X(num_moving_keypoints, "tested keypoints above moving_chi2")                                    \
-  X(num_warp_tested, "grid pixels tested by the dense depth warp")                                 \
-  X(num_moving_pixels, "grid pixels flagged by the dense depth warp")                              \
-  X(num_warp_candidates, "candidates found by the warp alone (before merging)")                    \
-  X(num_candidates, "clusters that passed the size and support tests")                             \
-  X(num_new_objects, "candidates confirmed this frame")                                            \
-  X(num_objects, "objects reported (new + held)")                                                  \
-  X(num_segments, "grown object segments in the pixel mask")                                       \
-  X(num_segments_leaked, "regions that outgrew the object size (seeds kept only)")                 \
-  X(num_segment_cells, "warp grid cells in the pixel mask")                                        \
-  X(ground_found, "a floor plane bounded the segments")                                            \
+#define DS3D_GEOMETRIC_STATS(X)                                                    \
+  X(pose_ok, "a reference was available and the pose is trusted")                  \
+  X(num_matches, "descriptor matches with the reference (reference depth)")        \
+  X(num_pose_inliers, "PnP-RANSAC inliers")                                        \
+  X(num_tested, "keypoints with depth in both views that were chi2-tested")        \
+  X(num_moving_keypoints, "tested keypoints above moving_chi2")                    \
+  X(num_warp_tested, "grid pixels tested by the dense depth warp")                 \
+  X(num_moving_pixels, "grid pixels flagged by the dense depth warp")              \
+  X(num_warp_candidates, "candidates found by the warp alone (before merging)")    \
+  X(num_candidates, "clusters that passed the size and support tests")             \
+  X(num_new_objects, "candidates confirmed this frame")                            \
+  X(num_objects, "objects reported (new + held)")                                  \
+  X(num_segments, "grown object segments in the pixel mask")                       \
+  X(num_segments_leaked, "regions that outgrew the object size (seeds kept only)") \
+  X(num_segment_cells, "warp grid cells in the pixel mask")                        \
+  X(ground_found, "a floor plane bounded the segments")                            \
   X(pixel_sigma, "sigma_px used this frame [px]")
 
 namespace {
@@ -122,7 +128,8 @@ void bind_geometric_motion(py::module_& m) {
 #define DS3D_BIND_FIELD(name, doc) params.def_readwrite(#name, &GeometricMotionParams::name, doc);
   DS3D_GEOMETRIC_PARAMS(DS3D_BIND_FIELD)
 #undef DS3D_BIND_FIELD
-  params.def("validate", &GeometricMotionParams::validate, "Raises ValueError naming the bad field.")
+  params
+      .def("validate", &GeometricMotionParams::validate, "Raises ValueError naming the bad field.")
       .def("__repr__", [](const GeometricMotionParams& p) {
         std::ostringstream s;
         s << std::boolalpha << "GeometricMotionParams(";
@@ -136,8 +143,8 @@ void bind_geometric_motion(py::module_& m) {
         return s.str();
       });
 
-  py::class_<GeometricMotionStats> stats(m, "GeometricMotionStats",
-                                         "Counters of the last GeometricMotionSource.detect() call.");
+  py::class_<GeometricMotionStats> stats(
+      m, "GeometricMotionStats", "Counters of the last GeometricMotionSource.detect() call.");
 #define DS3D_BIND_STAT(name, doc) stats.def_readonly(#name, &GeometricMotionStats::name, doc);
   DS3D_GEOMETRIC_STATS(DS3D_BIND_STAT)
 #undef DS3D_BIND_STAT
@@ -159,7 +166,7 @@ void bind_geometric_motion(py::module_& m) {
         std::ostringstream o;
         o << std::boolalpha << "GeometricMotionStats(";
         const char* sep = "";
-#define DS3D_REPR_STAT(name, doc) \
+#define DS3D_REPR_STAT(name, doc)  \
   o << sep << #name "=" << s.name; \
   sep = ", ";
         DS3D_GEOMETRIC_STATS(DS3D_REPR_STAT)
@@ -175,7 +182,8 @@ void bind_geometric_motion(py::module_& m) {
       "learned weights (ORB matches + PnP-RANSAC pose, chi2 test of each keypoint's 3-D residual,\n"
       "HDBSCAN clusters with a support test, dense depth-warp evidence, confirmation over frames;\n"
       "include/ds3d/geometric_motion.hpp). detect(rgb, depth, timestamp, camera) as every\n"
-      "ds3d.DynamicObjectSource; returns DynamicObjects with boxes_3d (camera frame). Keeps state:\n"
+      "ds3d.DynamicObjectSource; returns DynamicObjects with boxes_3d (camera frame). Keeps "
+      "state:\n"
       "frames in order, one sequence per instance. Deterministic.")
       .def(py::init<const GeometricMotionParams&>(), py::arg("params") = GeometricMotionParams{},
            "ValueError naming the bad field of params.")
@@ -186,15 +194,18 @@ void bind_geometric_motion(py::module_& m) {
           "last_stats", [](const GeometricMotionSource& s) { return s.last_stats(); },
           "ds3d.GeometricMotionStats of the last detect() call (a copy).")
       .def_property_readonly(
-          "last_tested", [](const GeometricMotionSource& s) { return tested_array(s.last_tested()); },
+          "last_tested",
+          [](const GeometricMotionSource& s) { return tested_array(s.last_tested()); },
           "Structured (N,) array of the keypoints chi2-tested in the last detect() call: u v [px,\n"
-          "raw], z [m], chi2 (float32), moving (bool), cluster (int32, -1 = none), candidate (bool).\n"
+          "raw], z [m], chi2 (float32), moving (bool), cluster (int32, -1 = none), candidate "
+          "(bool).\n"
           "Empty without a trusted pose.")
       .def_property_readonly(
           "last_moving_pixels",
           [](const GeometricMotionSource& s) {
             const auto& px = s.last_moving_pixels();
-            py::array_t<float> a({static_cast<py::ssize_t>(px.size()), static_cast<py::ssize_t>(2)});
+            py::array_t<float> a(
+                {static_cast<py::ssize_t>(px.size()), static_cast<py::ssize_t>(2)});
             auto r = a.mutable_unchecked<2>();
             for (std::size_t i = 0; i < px.size(); ++i) {
               r(static_cast<py::ssize_t>(i), 0) = px[i].x();

@@ -98,7 +98,8 @@ void bind_orb_features(py::module_& m) {
       .def_property_readonly(
           "octave",
           [](const OrbFeatures& f) {
-            return per_keypoint<std::int32_t>(f, [&](std::size_t i) { return f.keypoints[i].octave; });
+            return per_keypoint<std::int32_t>(f,
+                                              [&](std::size_t i) { return f.keypoints[i].octave; });
           },
           "(N,) int32 pyramid level of each keypoint, in [0, num_levels).")
       .def_property_readonly(
@@ -120,7 +121,8 @@ void bind_orb_features(py::module_& m) {
           },
           "(N,) float32 keypoint diameter at level 0 [px] (grows with the level's scale).")
       .def_property_readonly(
-          "depth", [](const OrbFeatures& f) {
+          "depth",
+          [](const OrbFeatures& f) {
             return per_keypoint<float>(f, [&](std::size_t i) { return f.depth[i]; });
           },
           "(N,) float32 depth at the keypoint [m]; 0 = missing or outside [min_depth, max_range].")

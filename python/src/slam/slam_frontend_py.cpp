@@ -54,20 +54,22 @@ py::array_t<double> matrix4(const Eigen::Isometry3d& T) {
 class PySlam {
  public:
   explicit PySlam(const FrontendConfig& cfg) : slam_(cfg) {}
-  py::array_t<double> track(const py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>& rgb,
-                            const std::optional<py::array_t<std::uint16_t, py::array::c_style | py::array::forcecast>>& depth,
-                            double timestamp) {
+  py::array_t<double> track(
+      const py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>& rgb,
+      const std::optional<py::array_t<std::uint16_t, py::array::c_style | py::array::forcecast>>&
+          depth,
+      double timestamp) {
     constexpr const char* fn = "ds3d.Slam.track";
-    DS3D_CHECK(rgb.ndim() == 3 && rgb.shape(2) == 3, fn, ": rgb must be an (H, W, 3) uint8 BGR array (got ",
-               rgb.ndim(), " dimensions)");
+    DS3D_CHECK(rgb.ndim() == 3 && rgb.shape(2) == 3, fn,
+               ": rgb must be an (H, W, 3) uint8 BGR array (got ", rgb.ndim(), " dimensions)");
     const cv::Mat rgb_mat(static_cast<int>(rgb.shape(0)), static_cast<int>(rgb.shape(1)), CV_8UC3,
                           const_cast<std::uint8_t*>(rgb.data()));
     cv::Mat depth_mat;
     if (depth) {
-      DS3D_CHECK(depth->ndim() == 2, fn, ": depth must be an (H, W) uint16 array (got ", depth->ndim(),
-                 " dimensions)");
-      depth_mat = cv::Mat(static_cast<int>(depth->shape(0)), static_cast<int>(depth->shape(1)), CV_16UC1,
-                          const_cast<std::uint16_t*>(depth->data()));
+      DS3D_CHECK(depth->ndim() == 2, fn, ": depth must be an (H, W) uint16 array (got ",
+                 depth->ndim(), " dimensions)");
+      depth_mat = cv::Mat(static_cast<int>(depth->shape(0)), static_cast<int>(depth->shape(1)),
+                          CV_16UC1, const_cast<std::uint16_t*>(depth->data()));
     }
     {
       const py::gil_scoped_release release;
@@ -93,13 +95,14 @@ ds3d::PinholeCamera camera_from(const std::string& spec) {
 }  // namespace
 
 void bind_slam_frontend(py::module_& m) {
-  py::class_<FrontendConfig>(m, "SlamConfig",
-                             "Configuration of ds3d.Slam (include/ds3d/slam_frontend.hpp FrontendConfig).\n"
-                             "Camera fields are flattened: fx fy cx cy width height k1 k2 p1 p2 k3 depth_scale.")
+  py::class_<FrontendConfig>(
+      m, "SlamConfig",
+      "Configuration of ds3d.Slam (include/ds3d/slam_frontend.hpp FrontendConfig).\n"
+      "Camera fields are flattened: fx fy cx cy width height k1 k2 p1 p2 k3 depth_scale.")
       .def(py::init<>())
-#define DS3D_CAM_FIELD(name)                                                              \
-  def_property(                                                                         \
-      #name, [](const FrontendConfig& c) { return c.camera.name; },                     \
+#define DS3D_CAM_FIELD(name)                                        \
+  def_property(                                                     \
+      #name, [](const FrontendConfig& c) { return c.camera.name; }, \
       [](FrontendConfig& c, decltype(ds3d::PinholeCamera::name) v) { c.camera.name = v; })
       .DS3D_CAM_FIELD(fx)
       .DS3D_CAM_FIELD(fy)
@@ -114,8 +117,11 @@ void bind_slam_frontend(py::module_& m) {
       .DS3D_CAM_FIELD(k3)
       .DS3D_CAM_FIELD(depth_scale)
 #undef DS3D_CAM_FIELD
-      .def("set_camera", [](FrontendConfig& c, const std::string& spec) { c.camera = camera_from(spec); },
-           py::arg("spec"), "Camera from a preset name (tum1 tum2 tum3 tum_ros bonn) or a camera.txt path.")
+      .def(
+          "set_camera",
+          [](FrontendConfig& c, const std::string& spec) { c.camera = camera_from(spec); },
+          py::arg("spec"),
+          "Camera from a preset name (tum1 tum2 tum3 tum_ros bonn) or a camera.txt path.")
       .def_property(
           "num_features", [](const FrontendConfig& c) { return c.orb.num_features; },
           [](FrontendConfig& c, int v) { c.orb.num_features = v; })
@@ -142,33 +148,43 @@ void bind_slam_frontend(py::module_& m) {
       .def_readwrite("refine_rounds", &FrontendConfig::refine_rounds)
       .def("validate", &FrontendConfig::validate, "Raises ValueError naming the bad field.");
 
-  py::class_<PySlam>(m, "Slam",
-                     "ORB + Ceres RGB-D SLAM front-end (include/ds3d/slam_frontend.hpp SlamFrontend).\n"
-                     "Slam(config=SlamConfig()); track(rgb, depth, timestamp) -> 4x4 camera-to-world.")
+  py::class_<PySlam>(
+      m, "Slam",
+      "ORB + Ceres RGB-D SLAM front-end (include/ds3d/slam_frontend.hpp SlamFrontend).\n"
+      "Slam(config=SlamConfig()); track(rgb, depth, timestamp) -> 4x4 camera-to-world.")
       .def(py::init<const FrontendConfig&>(), py::arg("config") = FrontendConfig{})
-      .def("track", &PySlam::track, py::arg("rgb"), py::arg("depth"), py::arg("timestamp"),
-           "Tracks one frame: rgb (H, W, 3) uint8 BGR, depth (H, W) uint16 in depth_scale units per "
-           "metre (or None), timestamp [s] (non-decreasing). Returns the 4x4 camera-to-world pose "
-           "(the last known one when tracking is lost; see last_state). Raises ValueError on bad "
-           "images or when time goes backwards.")
-      .def_property_readonly("last_state", [](const PySlam& s) { return std::string(ds3d::slam::to_string(s.last().state)); })
+      .def(
+          "track", &PySlam::track, py::arg("rgb"), py::arg("depth"), py::arg("timestamp"),
+          "Tracks one frame: rgb (H, W, 3) uint8 BGR, depth (H, W) uint16 in depth_scale units per "
+          "metre (or None), timestamp [s] (non-decreasing). Returns the 4x4 camera-to-world pose "
+          "(the last known one when tracking is lost; see last_state). Raises ValueError on bad "
+          "images or when time goes backwards.")
+      .def_property_readonly(
+          "last_state",
+          [](const PySlam& s) { return std::string(ds3d::slam::to_string(s.last().state)); })
       .def_property_readonly("last_tracked", [](const PySlam& s) { return s.last().tracked; })
-      .def_property_readonly("last_num_inliers", [](const PySlam& s) { return s.last().num_inliers; })
-      .def("finish", [](PySlam& s) { s.slam().finish(); }, py::call_guard<py::gil_scoped_release>(),
-           "Applies pending and final bundle adjustment; call after the last frame.")
-      .def("trajectory", [](PySlam& s) { return poses_to_array(s.slam().trajectory()); },
-           "(N, 8) float64: timestamp tx ty tz qx qy qz qw per input frame (camera-to-world).")
-      .def("keyframe_trajectory", [](PySlam& s) { return poses_to_array(s.slam().keyframe_trajectory()); },
-           "(K, 8) float64 keyframe poses, same layout as trajectory().")
-      .def("map_points", [](PySlam& s) { return ds3d::Points3f(s.slam().map_points()); },
-           "(M, 3) float32 map points [m, world].")
+      .def_property_readonly("last_num_inliers",
+                             [](const PySlam& s) { return s.last().num_inliers; })
+      .def(
+          "finish", [](PySlam& s) { s.slam().finish(); }, py::call_guard<py::gil_scoped_release>(),
+          "Applies pending and final bundle adjustment; call after the last frame.")
+      .def(
+          "trajectory", [](PySlam& s) { return poses_to_array(s.slam().trajectory()); },
+          "(N, 8) float64: timestamp tx ty tz qx qy qz qw per input frame (camera-to-world).")
+      .def(
+          "keyframe_trajectory",
+          [](PySlam& s) { return poses_to_array(s.slam().keyframe_trajectory()); },
+          "(K, 8) float64 keyframe poses, same layout as trajectory().")
+      .def(
+          "map_points", [](PySlam& s) { return ds3d::Points3f(s.slam().map_points()); },
+          "(M, 3) float32 map points [m, world].")
       .def_property_readonly("num_keyframes", [](PySlam& s) { return s.slam().num_keyframes(); });
 
   m.def(
       "_run_slam",
-      [](const std::string& dataset_dir, const std::string& camera, std::size_t max_frames, bool threaded,
-         std::optional<FrontendConfig> config, const std::string& dynamic, const std::string& weights,
-         int detect_every, std::optional<float> min_score) {
+      [](const std::string& dataset_dir, const std::string& camera, std::size_t max_frames,
+         bool threaded, std::optional<FrontendConfig> config, const std::string& dynamic,
+         const std::string& weights, int detect_every, std::optional<float> min_score) {
         ds3d::slam::DynamicSourceOptions sopt;
         sopt.weights = weights;
         sopt.htx.detect_every = detect_every;
@@ -193,7 +209,8 @@ void bind_slam_frontend(py::module_& m) {
         }
         return poses_to_array(poses);
       },
-      py::arg("dataset_dir"), py::arg("camera") = "", py::arg("max_frames") = 0, py::arg("threaded") = true,
-      py::arg("config") = py::none(), py::arg("dynamic") = "none", py::arg("weights") = "",
-      py::arg("detect_every") = 1, py::arg("min_score") = py::none(), "Internal: see ds3d.run_slam.");
+      py::arg("dataset_dir"), py::arg("camera") = "", py::arg("max_frames") = 0,
+      py::arg("threaded") = true, py::arg("config") = py::none(), py::arg("dynamic") = "none",
+      py::arg("weights") = "", py::arg("detect_every") = 1, py::arg("min_score") = py::none(),
+      "Internal: see ds3d.run_slam.");
 }

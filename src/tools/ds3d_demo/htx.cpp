@@ -32,7 +32,8 @@ void htx_demo(const ds3d::demo::Context& ctx) {
   const auto path = ctx.out_dir / "htx_fast_random.safetensors";
   {
     std::ofstream f(path, std::ios::binary);
-    f << ds3d::serialize_safetensors(tensors, {{"format", "ds3d-htx"}, {"version", "1"}, {"config", config.to_json()}});
+    f << ds3d::serialize_safetensors(
+        tensors, {{"format", "ds3d-htx"}, {"version", "1"}, {"config", config.to_json()}});
   }
   const auto det = ds3d::SparseDetector::load(path);
   // A room: back wall, a table and a person-sized column, 4,096 points, Z up.
@@ -47,10 +48,12 @@ void htx_demo(const ds3d::demo::Context& ctx) {
   }
   const auto t0 = std::chrono::steady_clock::now();
   const auto out = det.run(pts, {.num_threads = 1, .part_logits = true});
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  std::cout << "HTx-lite '" << det.config().profile << "': " << det.config().num_centres << " tokens, "
-            << out.proposals.size() << " queries -> " << out.boxes.size() << " boxes after NMS in " << ms
-            << " ms (1 thread, random weights: the boxes are meaningless until issue 9 trains them)\n";
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  std::cout
+      << "HTx-lite '" << det.config().profile << "': " << det.config().num_centres << " tokens, "
+      << out.proposals.size() << " queries -> " << out.boxes.size() << " boxes after NMS in " << ms
+      << " ms (1 thread, random weights: the boxes are meaningless until issue 9 trains them)\n";
   ds3d::Box3 person;
   person.centre = {0.45F, 1.75F, 0.85F};
   person.size = {0.5F, 0.5F, 1.7F};
@@ -60,8 +63,8 @@ void htx_demo(const ds3d::demo::Context& ctx) {
     fg += l == 1;
     ignore += l == -1;
   }
-  std::cout << "Part-A2 targets for a person box: " << fg << " foreground, " << ignore << " ignored points; weights in "
-            << path.string() << "\n";
+  std::cout << "Part-A2 targets for a person box: " << fg << " foreground, " << ignore
+            << " ignored points; weights in " << path.string() << "\n";
 }
 
 }  // namespace
