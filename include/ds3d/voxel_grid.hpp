@@ -106,6 +106,12 @@ template <PointCloud C>
 [[nodiscard]] VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params,
                                          VoxelGridWorkspace& workspace);
 
+/// Frees the calling thread's cached scratch of the plain voxel_grid() overload (see
+/// kVoxelGridCachedScratchBytes), e.g. before a worker thread idles for long. The next plain call
+/// on this thread allocates it again. Other threads' scratch is not touched.
+/// @return the bytes released (0 when the thread held none).
+inline std::size_t release_voxel_grid_scratch() noexcept;
+
 /// Overload for a row-major N×3 float map (numpy float32, no copy).
 [[nodiscard]] inline VoxelGridResult voxel_grid(Eigen::Ref<const Points3f> xyz,
                                                 const VoxelGridParams& params = {}) {

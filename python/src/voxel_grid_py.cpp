@@ -69,4 +69,7 @@ void bind_voxel_grid(py::module_& m) {
   m.def("_voxel_grid", &run<Eigen::Ref<const ds3d::Points3d>>, py::arg("points"),
         py::arg("leaf_size"), py::arg("num_threads") = 1, py::arg("min_points") = 1, doc);
   ds3d::py_util::def_checked(m, "voxel_grid", "_voxel_grid", doc);
+  m.def("release_voxel_grid_scratch", &ds3d::release_voxel_grid_scratch,
+        "Frees the calling thread's cached voxel_grid scratch (kept between calls, at most\n"
+        "64 MiB per thread); returns the bytes released (0 when there was none).");
 }

@@ -16,6 +16,18 @@ def _points(case):
     return np.fromfile(DATA / case / "input.bin", dtype="<f4").reshape(-1, 3)
 
 
+def test_voxel_grid_scratch_release_keeps_results():
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-1, 1, size=(20000, 3)).astype(np.float32)
+    first = ds3d.voxel_grid(pts, 0.01)  # fills this thread's cached scratch
+    assert ds3d.release_voxel_grid_scratch() > 0
+    assert ds3d.release_voxel_grid_scratch() == 0
+    again = ds3d.voxel_grid(pts, 0.01)
+    np.testing.assert_array_equal(again.keys, first.keys)
+    np.testing.assert_array_equal(again.centroids, first.centroids)
+    np.testing.assert_array_equal(again.representative, first.representative)
+
+
 def test_voxel_grid_matches_golden_float32_and_float64():
     pts = _points("cube_1k")
     gold = np.loadtxt(DATA / "cube_1k" / "voxel_0.2x0.3x0.5.csv", delimiter=",", skiprows=1)

@@ -738,6 +738,13 @@ void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int thread
 
 }  // namespace detail
 
+inline std::size_t release_voxel_grid_scratch() noexcept {
+  VoxelGridWorkspace& ws = detail::thread_voxel_workspace();
+  const std::size_t bytes = detail::workspace_bytes(ws);
+  ws = VoxelGridWorkspace{};
+  return bytes;
+}
+
 template <PointCloud C>
 VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params) {
   VoxelGridWorkspace& ws = detail::thread_voxel_workspace();
