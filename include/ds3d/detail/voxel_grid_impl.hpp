@@ -753,7 +753,9 @@ VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params) {
   struct Trim {
     VoxelGridWorkspace& ws;
     ~Trim() {
-      if (detail::workspace_bytes(ws) > kVoxelGridCachedScratchBytes) ws = VoxelGridWorkspace{};
+      if (detail::workspace_bytes(ws) > kVoxelGridCachedScratchBytes) {
+        (void)release_voxel_grid_scratch();
+      }
     }
   } trim{ws};
   return voxel_grid(cloud, params, ws);
