@@ -319,8 +319,7 @@ struct SlamFrontend::Impl {
     std::array<std::array<std::uint64_t, 4>, kDescriptorWindow> words{};
     for (std::size_t i = 0; i < n; ++i) {
       const auto& [kf, idx] = p.obs[first + i];
-      std::memcpy(words[i].data(), keyframes[static_cast<std::size_t>(kf)].data.desc.ptr(idx),
-                  32);
+      std::memcpy(words[i].data(), keyframes[static_cast<std::size_t>(kf)].data.desc.ptr(idx), 32);
     }
     std::array<std::array<int, kDescriptorWindow>, kDescriptorWindow> dist{};
     for (std::size_t i = 0; i < n; ++i) {
