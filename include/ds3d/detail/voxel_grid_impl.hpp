@@ -522,7 +522,7 @@ inline void exclusive_prefix(std::uint32_t* c, std::size_t len) {
 
 /// Sparse path, one thread, keys of 23 to 32 bits: the keys (into the first half of ws.words)
 /// and their stable sort as (key << 32 | index) pairs with the (y, z) fields (`low` bits, at most
-/// log2(n)) as one digit and the x field (`bits - low` <= 11 bits) as the other. Returns the
+/// log2(n) and 22) as one digit and the x field (`bits - low` <= 11 bits) as the other. Returns the
 /// buffer holding the sorted pairs.
 ///
 /// A depth frame arrives in sensor order: along an image row the (y, z) voxel moves by one
@@ -850,14 +850,15 @@ void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int thread
     ws.tmp = make_scratch<std::uint64_t>(n);
     ws.capacity = n;
   }
-  // Passes 2 and 3: keys, then their stable radix sort as pairs (kNoKey pairs end last). Three
-  // equal digits would be needed (23 to 32 bits): on one thread, when the (y, z) fields fit in a
-  // digit of at most log2(n) bits (its counters take no more memory than the keys) and the x
-  // field in one of at most 11, the two-digit split of sort_pairs_yz_x.
+  // Passes 2 and 3: keys, then their stable radix sort as pairs (kNoKey pairs end last). Where
+  // three equal digits would be needed (23 to 32 bits): on one thread, when the (y, z) fields fit
+  // in a digit of at most log2(n) bits (its counters take no more memory than the keys) and of
+  // at most 22 (its fallback halves are <= 11 bits, like every other digit), and the x field in
+  // one of at most 11, the two-digit split of sort_pairs_yz_x.
   const int passes = (bits + 10) / 11;
   const auto low = static_cast<unsigned>(b[1] + b[2]);  // bits of the (y, z) fields
   const bool yz_x = threads == 1 && passes == 3 && bits - static_cast<int>(low) <= 11 &&
-                    (std::size_t{1} << low) <= n;
+                    low <= 22 && (std::size_t{1} << low) <= n;
   const std::uint64_t* const sorted =
       yz_x ? sort_pairs_yz_x(cloud, g, bits, low, static_cast<unsigned>(b[2]), ws)
            : sort_pairs_digits(cloud, threads, g, bits, ws);
