@@ -520,7 +520,7 @@ inline void exclusive_prefix(std::uint32_t* c, std::size_t len) {
   }
 }
 
-/// Sparse path, one thread, keys of 23 to 32 bits: the keys (into the first half of ws.words)
+/// Sparse path, keys of 23 to 32 bits: the keys (parallel, into the first half of ws.words)
 /// and their stable sort as (key << 32 | index) pairs with the (y, z) fields (`low` bits, at most
 /// log2(n) and 22) as one digit and the x field (`bits - low` <= 11 bits) as the other. Returns the
 /// buffer holding the sorted pairs.
@@ -534,8 +534,8 @@ inline void exclusive_prefix(std::uint32_t* c, std::size_t len) {
 /// into two (histograms derived from the joint one) and the sort makes the usual three passes.
 /// Same output either way (a stable LSD sort over the same bits).
 template <PointCloud C>
-[[nodiscard]] const std::uint64_t* sort_pairs_yz_x(const C& cloud, const KeyGrid& g, int bits,
-                                                   unsigned low, unsigned bz,
+[[nodiscard]] const std::uint64_t* sort_pairs_yz_x(const C& cloud, int threads, const KeyGrid& g,
+                                                   int bits, unsigned low, unsigned bz,
                                                    VoxelGridWorkspace& ws) {
   constexpr const char* kFn = "ds3d::voxel_grid";
   const std::size_t n = cloud::size(cloud);
@@ -547,34 +547,54 @@ template <PointCloud C>
   const unsigned wa = low / 2;  // fallback digits: [0, wa) and [wa, low), each <= 11 bits
   const std::size_t n_a = std::size_t{1} << wa;
   const std::size_t n_b = std::size_t{1} << (low - wa);
-  ws.hist.assign(n_low + n_high + n_a + n_b, 0U);
+  // One joint and one x histogram per chunk of the (parallel) key pass, summed into chunk 0's.
+  const auto chunks = static_cast<std::size_t>(std::max(1, threads));
+  const std::size_t per_chunk = n_low + n_high;
+  ws.hist.assign(chunks * per_chunk + n_a + n_b, 0U);
   std::uint32_t* const h_low = ws.hist.data();
   std::uint32_t* const h_high = h_low + n_low;
-  std::uint32_t* const h_a = h_high + n_high;
+  std::uint32_t* const h_a = ws.hist.data() + chunks * per_chunk;
   std::uint32_t* const h_b = h_a + n_a;
   std::uint64_t* const a = ws.words.get();
   std::uint64_t* const t = ws.tmp.get();
   auto* const key_bytes = reinterpret_cast<unsigned char*>(a);
   // |d| < 2^bz for the (y, z) digit difference d, as one unsigned compare.
   const std::uint32_t step = std::uint32_t{1} << bz;
+  ws.runs.assign(chunks, 0);  // points near their predecessor, per chunk
+  auto pass_keys = [&](std::size_t b0, std::size_t e0, std::size_t ch) {
+    std::uint32_t* const hl = h_low + ch * per_chunk;
+    std::uint32_t* const hh = hl + n_low;
+    std::size_t near = 0;
+    std::uint32_t prev = 0;  // (y, z) digit of the previous block's last point
+    for_each_key_block(
+        cloud, b0, e0, g, kFn, [&](std::size_t s, std::size_t len, const std::uint32_t* keys) {
+          std::memcpy(key_bytes + 4 * s, keys, 4 * len);
+          for (std::size_t j = 0; j < len; ++j) {
+            const std::uint32_t key = keys[j];
+            ++hl[key & low_mask];
+            ++hh[(key >> low) & high_mask];
+          }
+          std::size_t blk_near = ((keys[0] & low_mask) - prev + (step - 1)) < 2 * step - 1 ? 1 : 0;
+          for (std::size_t j = 1; j < len; ++j) {  // vectorises
+            const std::uint32_t d = (keys[j] & low_mask) - (keys[j - 1] & low_mask);
+            blk_near += d + (step - 1) < 2 * step - 1 ? 1 : 0;
+          }
+          near += blk_near;
+          prev = keys[len - 1] & low_mask;
+        });
+    ws.runs[ch] = near;
+  };
+  if (chunks == 1) {
+    pass_keys(0, n, 0);
+  } else {
+    parallel_chunks(n, chunks, threads, pass_keys);
+    for (std::size_t ch = 1; ch < chunks; ++ch) {
+      const std::uint32_t* src = h_low + ch * per_chunk;
+      for (std::size_t k = 0; k < per_chunk; ++k) h_low[k] += src[k];  // vectorises
+    }
+  }
   std::size_t near = 0;
-  std::uint32_t prev = 0;  // (y, z) digit of the previous block's last point
-  for_each_key_block(
-      cloud, 0, n, g, kFn, [&](std::size_t s, std::size_t len, const std::uint32_t* keys) {
-        std::memcpy(key_bytes + 4 * s, keys, 4 * len);
-        for (std::size_t j = 0; j < len; ++j) {
-          const std::uint32_t key = keys[j];
-          ++h_low[key & low_mask];
-          ++h_high[(key >> low) & high_mask];
-        }
-        std::size_t blk_near = ((keys[0] & low_mask) - prev + (step - 1)) < 2 * step - 1 ? 1 : 0;
-        for (std::size_t j = 1; j < len; ++j) {  // vectorises
-          const std::uint32_t d = (keys[j] & low_mask) - (keys[j - 1] & low_mask);
-          blk_near += d + (step - 1) < 2 * step - 1 ? 1 : 0;
-        }
-        near += blk_near;
-        prev = keys[len - 1] & low_mask;
-      });
+  for (std::size_t ch = 0; ch < chunks; ++ch) near += ws.runs[ch];
   auto key_at = [key_bytes](std::size_t k) {
     std::uint32_t key;
     std::memcpy(&key, key_bytes + 4 * k, 4);
@@ -851,16 +871,17 @@ void voxel_grid_sorted(const C& cloud, const VoxelGridParams& params, int thread
     ws.capacity = n;
   }
   // Passes 2 and 3: keys, then their stable radix sort as pairs (kNoKey pairs end last). Where
-  // three equal digits would be needed (23 to 32 bits): on one thread, when the (y, z) fields fit
-  // in a digit of at most log2(n) bits (its counters take no more memory than the keys) and of
-  // at most 22 (its fallback halves are <= 11 bits, like every other digit), and the x field in
-  // one of at most 11, the two-digit split of sort_pairs_yz_x.
+  // three equal digits would be needed (23 to 32 bits): when the (y, z) fields fit in a digit of
+  // at most 22 bits (its fallback halves are <= 11 bits, like every other digit) whose counters,
+  // one set per thread, take no more memory than the keys (chunks * 2^low <= n), and the x field
+  // in one of at most 11, the two-digit split of sort_pairs_yz_x.
   const int passes = (bits + 10) / 11;
   const auto low = static_cast<unsigned>(b[1] + b[2]);  // bits of the (y, z) fields
-  const bool yz_x = threads == 1 && passes == 3 && bits - static_cast<int>(low) <= 11 &&
-                    low <= 22 && (std::size_t{1} << low) <= n;
+  const auto chunks = static_cast<std::size_t>(std::max(1, threads));
+  const bool yz_x = passes == 3 && bits - static_cast<int>(low) <= 11 && low <= 22 &&
+                    chunks * (std::size_t{1} << low) <= n;
   const std::uint64_t* const sorted =
-      yz_x ? sort_pairs_yz_x(cloud, g, bits, low, static_cast<unsigned>(b[2]), ws)
+      yz_x ? sort_pairs_yz_x(cloud, threads, g, bits, low, static_cast<unsigned>(b[2]), ws)
            : sort_pairs_digits(cloud, threads, g, bits, ws);
   voxel_rows_sorted(cloud, params, threads, g, b, sorted, ws, r);
 }
