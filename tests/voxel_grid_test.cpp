@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -12,6 +13,8 @@
 #include <thread>
 #include <vector>
 
+#include "ds3d/rgbd.hpp"
+#include "support/depth_scene.hpp"
 #include "support/preprocess_fixtures.hpp"
 #include "support/synthetic.hpp"
 
@@ -325,6 +328,71 @@ TEST(VoxelGrid, SparseRowBlocksAndFieldWidthsMatchBruteForce) {
       expect_same(ds3d::voxel_grid(cloud, {.leaf_size = 0.01, .num_threads = t}), ref,
                   name + " threads " + std::to_string(t));
     }
+  }
+}
+
+TEST(VoxelGrid, SensorOrderAndShuffledTwoDigitSortMatchBruteForce) {
+  // A rendered depth frame (row-major, as a sensor delivers it) with a fine x leaf: keys of 23 to
+  // 32 bits whose (y, z) fields fit in log2(n) bits take the one-thread (y, z) / x split of the
+  // radix sort (on 1 and 3 threads), in two passes for the sensor order and in three (the
+  // fallback for arbitrary orders) once shuffled; non-finite points (the extra key bit),
+  // duplicates, min_points and a reused workspace included, checked against the brute force and the
+  // 3-thread result.
+  ds3d::PinholeCamera cam;
+  cam.width = 320;
+  cam.height = 240;
+  cam.fx = cam.fy = 262.5;
+  cam.cx = 159.5;
+  cam.cy = 119.5;
+  const auto frame = ds3d::test::render_room(3, cam);
+  Points3f sensor =
+      ds3d::depth_to_points(frame.depth.data(), cam.width, cam.height, cam.width, cam).points;
+  const ds3d::LeafSize leaf(0.006, 0.04, 0.04);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (Eigen::Index i = 5; i < sensor.rows(); i += 997) sensor(i, i % 3) = nan;
+  for (Eigen::Index i = 1000; i < 1300; ++i) sensor.row(i) = sensor.row(i - 1);
+  // The cloud must be one that the split applies to (see voxel_grid_sorted).
+  std::array<double, 3> lo{1e30, 1e30, 1e30};
+  std::array<double, 3> hi{-1e30, -1e30, -1e30};
+  const std::array<double, 3> l{leaf.dx, leaf.dy, leaf.dz};
+  for (Eigen::Index i = 0; i < sensor.rows(); ++i) {
+    if (!sensor.row(i).allFinite()) continue;
+    for (std::size_t d = 0; d < 3; ++d) {
+      const double k = std::floor(double(sensor(i, static_cast<Eigen::Index>(d))) / l[d]);
+      lo[d] = std::min(lo[d], k);
+      hi[d] = std::max(hi[d], k);
+    }
+  }
+  auto bits = [&](std::size_t d) {
+    return static_cast<int>(std::bit_width(std::uint64_t(hi[d] - lo[d])));
+  };
+  const int key_bits = bits(0) + bits(1) + bits(2) + 1;  // + 1: non-finite points
+  ASSERT_GE(key_bits, 23);
+  ASSERT_LE(key_bits - bits(1) - bits(2), 11);
+  // ... also on 3 threads (one joint histogram per thread).
+  ASSERT_LE(std::uint64_t{3} << (bits(1) + bits(2)), static_cast<std::uint64_t>(sensor.rows()));
+  // A fixed shuffle (Fisher-Yates with the test generator).
+  Points3f shuffled = sensor;
+  ds3d::test::Rng rng(41);
+  for (Eigen::Index i = shuffled.rows() - 1; i > 0; --i) {
+    const auto j = static_cast<Eigen::Index>(rng.next() % static_cast<std::uint64_t>(i + 1));
+    shuffled.row(i).swap(shuffled.row(j));
+  }
+  ds3d::VoxelGridWorkspace ws;
+  for (const auto& [name, cloud] :
+       {std::pair<std::string, const Points3f&>{"sensor", sensor}, {"shuffled", shuffled}}) {
+    const VoxelGridResult ref = brute_force_voxels(cloud, leaf);
+    EXPECT_GT(ref.num_non_finite, 50U);
+    expect_same(ds3d::voxel_grid(cloud, {.leaf_size = leaf}), ref, name);
+    expect_same(ds3d::voxel_grid(cloud, {.leaf_size = leaf}, ws), ref, name + " workspace");
+    expect_same(ds3d::voxel_grid(cloud, {.leaf_size = leaf, .num_threads = 3}), ref,
+                name + " 3 threads");
+    const VoxelGridResult three =
+        ds3d::voxel_grid(cloud, {.leaf_size = leaf, .min_points = 3, .num_threads = 3});
+    const VoxelGridResult one = ds3d::voxel_grid(cloud, {.leaf_size = leaf, .min_points = 3}, ws);
+    expect_same(one, three, name + " min_points 3");
+    EXPECT_EQ(one.num_dropped, three.num_dropped) << name;
+    EXPECT_GT(one.num_dropped, 0U) << name;
   }
 }
 

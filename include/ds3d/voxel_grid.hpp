@@ -68,7 +68,7 @@ struct VoxelGridWorkspace {
   detail::Scratch<std::uint64_t> tmp;    ///< radix-sort ping-pong buffer (not zero-filled)
   std::size_t capacity = 0;              ///< words of each of words / tmp
   std::vector<std::uint32_t> hist;       ///< radix histograms
-  std::vector<std::size_t> runs;         ///< per-chunk bounds, output offsets, dropped counts
+  std::vector<std::size_t> runs;         ///< per-chunk counts (bounds, offsets, dropped points)
   detail::Scratch<std::uint32_t> cell;   ///< dense box: key, then output row, of each point
   std::size_t cell_capacity = 0;         ///< entries of cell
   std::vector<std::uint64_t> occupied;   ///< dense box: occupancy bitmap of the key box
