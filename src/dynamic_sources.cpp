@@ -235,7 +235,9 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
       R_up_cam_ = upright_rotation(up);
       stats_.ground_found = true;
       // This frame's floor (camera frame): the masker keeps the keypoints on it static.
-      last_objects_.support_plane = (pre.ground_plane / up.norm()).cast<float>();
+      if (params_.report_floor) {
+        last_objects_.support_plane = (pre.ground_plane / up.norm()).cast<float>();
+      }
     }
   }
   DetectorInputParams ip = params_.input;

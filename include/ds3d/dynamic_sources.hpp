@@ -107,6 +107,10 @@ struct HtxSourceParams {
   /// 3σ of their depth noise); +inf gates by the projected rectangle and depth range alone (the
   /// behaviour before session 7). >= 0.
   float box_uncertainty = 0.15F;
+  /// Report the floor that preprocess found in the frame as DynamicObjects::support_plane (the
+  /// masker then keeps keypoints on it static). docs/dynamic.md, session 7: it raises the
+  /// synthetic precision and lowers Bonn's `htx`-only ATE; false restores the old behaviour.
+  bool report_floor = true;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 

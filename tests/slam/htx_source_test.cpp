@@ -205,6 +205,13 @@ TEST(HtxSource, KnownBoxReachesTheFilterAndDropsTheKeypointsInside) {
     EXPECT_THROW((void)ds3d::slam::image_boxes(loose, camera), ds3d::InvalidArgument);
     loose.boxes_3d_margin = {0.1F, 0.1F};
     EXPECT_THROW((void)ds3d::slam::image_boxes(loose, camera), ds3d::InvalidArgument);
+    ds3d::slam::HtxSourceParams no_floor;
+    no_floor.report_floor = false;
+    HtxSource quiet(fake, {"person", "chair"}, no_floor);
+    source = &quiet;
+    EXPECT_FALSE(quiet.detect(in, camera).support_plane.has_value());
+    EXPECT_TRUE(quiet.last_stats().ground_found);
+    source = &src;
   }
   const auto corners = ds3d::box::corners(given[0]);
   const Eigen::Matrix3f R_cam_up = src.R_up_cam().transpose();
