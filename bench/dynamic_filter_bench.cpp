@@ -2,10 +2,14 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // Cost of the box-gated HDBSCAN dynamic filter per frame: N keypoints spread over a 640×480
 // frame (a wall at 3 m) with one person box covering a given fraction of the image (a slab at
-// 1.5 m). Arguments: {keypoints, box area in percent of the image}.
+// 1.5 m). Arguments: {keypoints, box area in percent of the image, metric gates}: with gates 1
+// the box also carries a solid (an oriented 3-D box holding everything in its rectangle between
+// 1.2 and 3.2 m, so the same keypoints are clustered) and the frame a support plane 2 m below the
+// camera (no keypoint on it): the cost of the gates alone (session 7).
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <optional>
 #include <vector>
 
 #include "ds3d/dynamic_filter.hpp"
@@ -35,12 +39,22 @@ void BM_DynamicFilter(benchmark::State& state) {
   box.x_max = u1;
   box.y_min = v0;
   box.y_max = v1;
-  const std::vector<ds3d::ImageBox> boxes{box};
   const ds3d::PinholeCamera cam;
+  std::optional<Eigen::Vector4f> plane;
+  if (state.range(2) != 0) {
+    ds3d::SolidBox solid;
+    solid.centre = Eigen::Vector3f(0.0F, 0.0F, 2.2F);
+    solid.half = Eigen::Vector3f(static_cast<float>(320.0 * side / cam.fx * 3.2 + 0.1),
+                                 static_cast<float>(240.0 * side / cam.fy * 3.2 + 0.1), 1.0F);
+    solid.margin = 0.15F;
+    box.solid = solid;
+    plane = Eigen::Vector4f(0.0F, -1.0F, 0.0F, 2.0F);
+  }
+  const std::vector<ds3d::ImageBox> boxes{box};
   ds3d::DynamicFeatureFilter filter;
   int dyn = 0;
   for (auto _ : state) {
-    const auto r = filter.filter(kp, boxes, cam);
+    const auto r = filter.filter(kp, boxes, cam, plane);
     dyn = r.num_dynamic;
     benchmark::DoNotOptimize(r.dynamic.data());
   }
@@ -48,7 +62,8 @@ void BM_DynamicFilter(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * n);
 }
 BENCHMARK(BM_DynamicFilter)
-    ->ArgsProduct({{500, 1000, 2000}, {10, 40, 90}})
+    ->ArgsProduct({{500, 1000, 2000}, {10, 40, 90}, {0, 1}})
+    ->ArgNames({"n", "box", "gates"})
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace

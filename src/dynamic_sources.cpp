@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <system_error>
 #include <utility>
@@ -76,9 +77,21 @@ std::vector<ImageBox> image_boxes(const DynamicObjects& objects, const PinholeCa
     b.y_min = std::max(b.y_min, -0.5F);
     if (b.x_max > b.x_min && b.y_max > b.y_min) out.push_back(b);
   }
-  for (const auto& c : objects.boxes_3d) {
+  const auto& margins = objects.boxes_3d_margin;
+  DS3D_CHECK(margins.empty() || margins.size() == objects.boxes_3d.size(),
+             "ds3d::slam::image_boxes: boxes_3d_margin must be empty or one per 3-D box (got ",
+             margins.size(), " margins for ", objects.boxes_3d.size(), " boxes)");
+  for (std::size_t i = 0; i < margins.size(); ++i) {
+    DS3D_CHECK(margins[i] >= 0.0F, "ds3d::slam::image_boxes: boxes_3d_margin[", i,
+               "] must be >= 0 or +inf (got ", margins[i], ")");
+  }
+  for (std::size_t i = 0; i < objects.boxes_3d.size(); ++i) {
+    const auto& c = objects.boxes_3d[i];
     if (!c.allFinite()) continue;
-    if (const auto b = project_box(c, camera)) out.push_back(*b);
+    auto b = project_box(c, camera);
+    if (!b) continue;
+    if (!margins.empty() && std::isfinite(margins[i])) b->solid = solid_from_corners(c, margins[i]);
+    out.push_back(*b);
   }
   return out;
 }
@@ -110,7 +123,7 @@ std::vector<std::uint8_t> HdbscanMasker::mask(const FrameInput& frame, const Pin
                                               const OrbFeatures& features,
                                               const DynamicObjects& objects) {
   const Keypoints3f kp = keypoint_array(features, frame.depth, camera);
-  last_ = filter_.filter(kp, image_boxes(objects, camera), camera);
+  last_ = filter_.filter(kp, image_boxes(objects, camera), camera, objects.support_plane);
   std::vector<std::uint8_t> out = last_.dynamic;
   const cv::Mat& m = objects.pixel_mask;
   if (!m.empty() && m.type() == CV_8UC1 && m.cols == camera.width && m.rows == camera.height) {
@@ -135,6 +148,9 @@ void HtxSourceParams::validate() const {
              detect_every, ")");
   DS3D_CHECK(num_threads >= 0, "ds3d::slam::HtxSourceParams: num_threads must be >= 0 (got ",
              num_threads, ")");
+  DS3D_CHECK(box_uncertainty >= 0.0F,
+             "ds3d::slam::HtxSourceParams: box_uncertainty must be >= 0 or +inf (got ",
+             box_uncertainty, ")");
 }
 
 namespace {
@@ -215,9 +231,13 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     const Eigen::Vector3d up = pre.ground_plane.head<3>();
     // The preprocess prior keeps the floor normal within 30° of camera -y, so this holds;
     // checked anyway so that a custom prior cannot make upright_rotation throw mid-sequence.
-    if (up.allFinite() && up.y() < 0.0) {
+    if (up.allFinite() && up.y() < 0.0 && std::isfinite(pre.ground_plane.w())) {
       R_up_cam_ = upright_rotation(up);
       stats_.ground_found = true;
+      // This frame's floor (camera frame): the masker keeps the keypoints on it static.
+      if (params_.report_floor) {
+        last_objects_.support_plane = (pre.ground_plane / up.norm()).cast<float>();
+      }
     }
   }
   DetectorInputParams ip = params_.input;
@@ -243,6 +263,7 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
           (R_cam_up * up_corners[static_cast<std::size_t>(k)]).cast<float>().transpose();
     }
     last_objects_.boxes_3d.push_back(corners);
+    last_objects_.boxes_3d_margin.push_back(params_.box_uncertainty);
     boxes_.push_back(b);
   }
   stats_.num_boxes = boxes_.size();
@@ -285,7 +306,16 @@ DynamicObjects CompositeSource::detect(const FrameInput& frame, const PinholeCam
   if (!out.scores.empty() && more.scores.empty()) more.scores.assign(more.boxes_2d.size(), 1.0F);
   out.boxes_2d.insert(out.boxes_2d.end(), more.boxes_2d.begin(), more.boxes_2d.end());
   out.scores.insert(out.scores.end(), more.scores.begin(), more.scores.end());
+  if (!out.boxes_3d_margin.empty() || !more.boxes_3d_margin.empty()) {
+    // One margin per 3-D box once either source gives them (+inf: rectangle and depth range).
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    out.boxes_3d_margin.resize(out.boxes_3d.size(), kInf);
+    more.boxes_3d_margin.resize(more.boxes_3d.size(), kInf);
+    out.boxes_3d_margin.insert(out.boxes_3d_margin.end(), more.boxes_3d_margin.begin(),
+                               more.boxes_3d_margin.end());
+  }
   out.boxes_3d.insert(out.boxes_3d.end(), more.boxes_3d.begin(), more.boxes_3d.end());
+  if (!out.support_plane) out.support_plane = more.support_plane;
   if (out.pixel_mask.empty()) {
     out.pixel_mask = more.pixel_mask;
   } else if (!more.pixel_mask.empty() && more.pixel_mask.size() == out.pixel_mask.size() &&
@@ -348,14 +378,23 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
     if (with_scores) out.scores.push_back(sem.scores.empty() ? 1.0F : sem.scores[i]);
     ++last_kept_;
   }
-  for (const auto& c : sem.boxes_3d) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  const bool with_margins = !sem.boxes_3d_margin.empty() || !out.boxes_3d_margin.empty();
+  if (with_margins) out.boxes_3d_margin.resize(out.boxes_3d.size(), kInf);
+  for (std::size_t i = 0; i < sem.boxes_3d.size(); ++i) {
+    const auto& c = sem.boxes_3d[i];
     DynamicObjects one;
     one.boxes_3d.push_back(c);
     const std::vector<ImageBox> ib = image_boxes(one, camera);
     if (ib.empty() || !gate(ib.front())) continue;
     out.boxes_3d.push_back(c);
+    if (with_margins) {
+      out.boxes_3d_margin.push_back(sem.boxes_3d_margin.empty() ? kInf : sem.boxes_3d_margin[i]);
+    }
     ++last_kept_;
   }
+  // The semantic source's floor (the motion source usually has none to give).
+  out.support_plane = sem.support_plane ? sem.support_plane : out.support_plane;
   return out;
 }
 

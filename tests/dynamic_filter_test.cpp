@@ -7,9 +7,13 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "support/synthetic.hpp"
@@ -310,6 +314,215 @@ TEST(DynamicFilter, ProjectedThreeDBoxGatesDepth) {
   const Score sc = score(r.dynamic, s.truth);
   EXPECT_GE(sc.precision, 0.95);
   EXPECT_GE(sc.recall, 0.95);
+}
+
+// Eight corners of an oriented box (any order) → SolidBox: axes, half sizes and containment
+// match the box the corners were made from; a non-cuboid is refused.
+TEST(SolidBox, FromCornersRecoversTheOrientedBox) {
+  ds3d::test::Rng rng(21);
+  for (int trial = 0; trial < 20; ++trial) {
+    const Eigen::Vector3f axis =
+        Eigen::Vector3f(static_cast<float>(rng.normal()), static_cast<float>(rng.normal()),
+                        static_cast<float>(rng.normal()))
+            .normalized();
+    const Eigen::Matrix3f R =
+        Eigen::AngleAxisf(static_cast<float>(rng.uniform(-3.1, 3.1)), axis).toRotationMatrix();
+    const Eigen::Vector3f half(static_cast<float>(rng.uniform(0.1, 1.0)),
+                               static_cast<float>(rng.uniform(0.1, 1.0)),
+                               static_cast<float>(rng.uniform(0.1, 1.0)));
+    const Eigen::Vector3f centre(static_cast<float>(rng.uniform(-1, 1)),
+                                 static_cast<float>(rng.uniform(-1, 1)),
+                                 static_cast<float>(rng.uniform(1, 4)));
+    std::vector<Eigen::Vector3f> pts;
+    for (const float a : {-1.0F, 1.0F}) {
+      for (const float b : {-1.0F, 1.0F}) {
+        for (const float c : {-1.0F, 1.0F}) {
+          pts.emplace_back(centre + R * Eigen::Vector3f(a * half.x(), b * half.y(), c * half.z()));
+        }
+      }
+    }
+    // A shuffled order (the rotation by trial keeps it deterministic).
+    std::rotate(pts.begin(), pts.begin() + trial % 8, pts.end());
+    std::swap(pts[1], pts[6]);
+    Eigen::Matrix<float, 8, 3> corners;
+    for (int k = 0; k < 8; ++k) corners.row(k) = pts[static_cast<std::size_t>(k)].transpose();
+    const auto solid = ds3d::solid_from_corners(corners, 0.0F);
+    ASSERT_TRUE(solid.has_value()) << "trial " << trial;
+    EXPECT_LT((solid->centre - centre).norm(), 1e-4F);
+    EXPECT_LT((solid->axes * solid->axes.transpose() - Eigen::Matrix3f::Identity()).norm(), 1e-4F);
+    std::vector<float> got(solid->half.data(), solid->half.data() + 3);
+    std::vector<float> want(half.data(), half.data() + 3);
+    std::sort(got.begin(), got.end());
+    std::sort(want.begin(), want.end());
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(got[k], want[k], 1e-4F);
+    for (int q = 0; q < 200; ++q) {
+      const Eigen::Vector3f local(static_cast<float>(rng.uniform(-1.3, 1.3)) * half.x(),
+                                  static_cast<float>(rng.uniform(-1.3, 1.3)) * half.y(),
+                                  static_cast<float>(rng.uniform(-1.3, 1.3)) * half.z());
+      const bool inside = (local.cwiseAbs().array() <= half.array() * 0.999F).all();
+      const bool outside = (local.cwiseAbs().array() > half.array() * 1.001F).any();
+      const Eigen::Vector3f p = centre + R * local;
+      const bool got_in = solid->contains(p, Eigen::Vector3f::UnitZ(), 0.0F);
+      if (inside) {
+        EXPECT_TRUE(got_in);
+      }
+      if (outside) {
+        EXPECT_FALSE(got_in);
+      }
+    }
+    Eigen::Matrix<float, 8, 3> bent = corners;
+    bent.row(3) += Eigen::Vector3f(0.05F, 0.0F, 0.0F).transpose();
+    EXPECT_FALSE(ds3d::solid_from_corners(bent, 0.0F).has_value());
+  }
+  EXPECT_FALSE(ds3d::solid_from_corners(Eigen::Matrix<float, 8, 3>::Zero(), 0.0F).has_value());
+  Eigen::Matrix<float, 8, 3> nan = Eigen::Matrix<float, 8, 3>::Ones();
+  nan(2, 1) = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_FALSE(ds3d::solid_from_corners(nan, 0.0F).has_value());
+  EXPECT_THROW((void)ds3d::solid_from_corners(nan, -1.0F), ds3d::InvalidArgument);
+}
+
+// Camera 1.2 m above a textured floor (camera frame: y down, floor y = 1.2 m) and a wall 5 m
+// ahead; a person 0.5 m wide and 1.7 m tall stands on the floor 2.5 m ahead, inside a loose box
+// that reaches down to the floor around the feet. Floor keypoints there are continuous in depth
+// with the feet, so without the plane the foreground takes them in; with it they stay static.
+struct FloorScene {
+  Scene s;
+  std::vector<std::uint8_t> on_floor;
+  ImageBox loose;
+};
+FloorScene person_on_floor(ds3d::test::Rng& rng) {
+  FloorScene fs;
+  const float f = 525.0F, cx = 319.5F, cy = 239.5F, h = 1.2F, zp = 2.5F;
+  const auto add = [&](float x, float y, float z, bool dyn, bool floor) {
+    const float u = f * x / z + cx;
+    const float v = f * y / z + cy;
+    if (u < 0 || u > 639 || v < 0 || v > 479) return;
+    fs.s.add(u, v, z, dyn);
+    fs.on_floor.push_back(floor ? 1 : 0);
+  };
+  for (int i = 0; i < 1500; ++i) {  // floor, 1-5 m ahead, 2 mm relief
+    const auto x = static_cast<float>(rng.uniform(-2.0, 2.0));
+    const auto z = static_cast<float>(rng.uniform(1.0, 5.0));
+    add(x, h + static_cast<float>(0.002 * rng.normal()), z, false, true);
+  }
+  for (int i = 0; i < 800; ++i) {  // wall
+    add(static_cast<float>(rng.uniform(-2.5, 2.5)), static_cast<float>(rng.uniform(-1.5, h)),
+        5.0F + static_cast<float>(0.01 * rng.normal()), false, false);
+  }
+  for (int i = 0; i < 300; ++i) {  // the person, feet on the floor
+    add(static_cast<float>(rng.uniform(-0.25, 0.25)), static_cast<float>(rng.uniform(h - 1.7, h)),
+        zp + static_cast<float>(rng.uniform(-0.15, 0.15)), true, false);
+  }
+  // A loose detection: 0.4 m wider per side and 0.3 m below the feet (at the person's depth).
+  fs.loose = box(cx + f * -0.65F / zp, cy + f * (h - 1.8F) / zp, cx + f * 0.65F / zp,
+                 cy + f * (h + 0.3F) / zp);
+  return fs;
+}
+
+TEST(DynamicFilter, FloorUnderAStandingPersonStaysStatic) {
+  ds3d::test::Rng rng(31);
+  const FloorScene fs = person_on_floor(rng);
+  const Eigen::Vector4f floor(0.0F, -1.0F, 0.0F, 1.2F);  // -y + 1.2 = 0
+  const auto count_floor = [&](const std::vector<std::uint8_t>& dyn) {
+    int k = 0;
+    for (std::size_t i = 0; i < dyn.size(); ++i) k += (dyn[i] != 0U && fs.on_floor[i] != 0U);
+    return k;
+  };
+  const auto without = ds3d::filter_dynamic_keypoints(fs.s.matrix(), {fs.loose}, kCam);
+  const auto with = ds3d::filter_dynamic_keypoints(fs.s.matrix(), {fs.loose}, kCam, {}, floor);
+  const Score a = score(without.dynamic, fs.s.truth);
+  const Score b = score(with.dynamic, fs.s.truth);
+  // The scene reproduces the failure: floor around the feet is taken in without the plane.
+  EXPECT_GT(count_floor(without.dynamic), 20) << "precision " << a.precision;
+  EXPECT_EQ(count_floor(with.dynamic), 0);
+  EXPECT_GT(with.num_on_support, 20);
+  EXPECT_GE(b.precision, 0.95);
+  EXPECT_GE(b.recall, 0.9);
+  EXPECT_GT(b.precision, a.precision);
+  // A plane given with any scale of (n, d) is the same plane; a zero normal is refused.
+  const auto scaled = ds3d::filter_dynamic_keypoints(fs.s.matrix(), {fs.loose}, kCam, {},
+                                                     Eigen::Vector4f(floor * 3));
+  EXPECT_EQ(scaled.dynamic, with.dynamic);
+  EXPECT_THROW((void)ds3d::filter_dynamic_keypoints(fs.s.matrix(), {fs.loose}, kCam, {},
+                                                    Eigen::Vector4f(0, 0, 0, 1)),
+               ds3d::InvalidArgument);
+  DynamicFilterParams bad;
+  bad.support_margin = -0.01F;
+  EXPECT_THROW(DynamicFeatureFilter{bad}, ds3d::InvalidArgument);
+}
+
+// A keypoint inside the projected rectangle and the depth range of a 3-D box, but beside the
+// box in 3-D (a cupboard behind and beside the person, continuous in depth with them), is static
+// when the box is known as a solid; without the solid it joins the foreground.
+TEST(DynamicFilter, SolidBoxKeepsWhatLiesBesideTheObjectStatic) {
+  Eigen::Matrix<float, 8, 3> c;  // x ±0.3 m, y ±0.85 m, z 2-3 m
+  int k = 0;
+  for (const float x : {-0.3F, 0.3F}) {
+    for (const float y : {-0.85F, 0.85F}) {
+      for (const float z : {2.0F, 3.0F}) c.row(k++) << x, y, z;
+    }
+  }
+  const auto pb = ds3d::project_box(c, kCam);
+  ASSERT_TRUE(pb.has_value());
+  ds3d::test::Rng rng(41);
+  Scene s;
+  std::vector<std::uint8_t> cupboard;
+  const auto add = [&](float x, float y, float z, bool dyn, bool cup) {
+    s.add(525.0F * x / z + 319.5F, 525.0F * y / z + 239.5F, z, dyn);
+    cupboard.push_back(cup ? 1 : 0);
+  };
+  for (int i = 0; i < 250; ++i) {  // the person, inside the box
+    add(static_cast<float>(rng.uniform(-0.25, 0.25)), static_cast<float>(rng.uniform(-0.8, 0.8)),
+        static_cast<float>(rng.uniform(2.3, 2.6)), true, false);
+  }
+  for (int i = 0; i < 120; ++i) {  // the cupboard's side, 0.07-0.1 m beside the box, z 2.7-2.95
+    const auto z = static_cast<float>(rng.uniform(2.7, 2.95));
+    add(static_cast<float>(rng.uniform(0.37, 0.40)), static_cast<float>(rng.uniform(-0.8, 0.8)), z,
+        false, true);
+  }
+  for (int i = 0; i < 1000; ++i) {  // wall behind, out of the depth range
+    add(static_cast<float>(rng.uniform(-2.0, 2.0)), static_cast<float>(rng.uniform(-1.5, 1.5)),
+        4.0F + static_cast<float>(0.01 * rng.normal()), false, false);
+  }
+  int in_rect = 0;
+  for (std::size_t i = 0; i < s.u.size(); ++i) {
+    in_rect += (cupboard[i] != 0U && pb->contains(s.u[i], s.v[i])) ? 1 : 0;
+  }
+  ASSERT_GT(in_rect, 60);  // the cupboard is in the rectangle and the depth range
+  const auto count_cup = [&](const std::vector<std::uint8_t>& dyn) {
+    int n = 0;
+    for (std::size_t i = 0; i < dyn.size(); ++i) n += (dyn[i] != 0U && cupboard[i] != 0U);
+    return n;
+  };
+  const auto rect_only = ds3d::filter_dynamic_keypoints(s.matrix(), {*pb}, kCam);
+  ImageBox solid = *pb;
+  solid.solid = ds3d::solid_from_corners(c, 0.05F);
+  ASSERT_TRUE(solid.solid.has_value());
+  const auto gated = ds3d::filter_dynamic_keypoints(s.matrix(), {solid}, kCam);
+  EXPECT_GT(count_cup(rect_only.dynamic), in_rect / 2);
+  EXPECT_EQ(count_cup(gated.dynamic), 0);
+  EXPECT_GE(gated.num_outside_solid, in_rect);
+  const Score sc = score(gated.dynamic, s.truth);
+  EXPECT_GE(sc.precision, 0.95);
+  EXPECT_GE(sc.recall, 0.95);
+  // The region carried over a detection miss keeps the solid, grown by carry_motion.
+  DynamicFeatureFilter carrying;  // carry_frames 1
+  (void)carrying.filter(s.matrix(), {solid}, kCam);
+  ASSERT_EQ(carrying.carried_regions().size(), 1U);
+  ASSERT_TRUE(carrying.carried_regions()[0].solid.has_value());
+  const auto missed = carrying.filter(s.matrix(), {}, kCam);
+  ASSERT_EQ(missed.boxes.size(), 1U);
+  ASSERT_TRUE(missed.boxes[0].carried && missed.boxes[0].box.solid.has_value());
+  EXPECT_FLOAT_EQ(missed.boxes[0].box.solid->margin, 0.05F + carrying.params().carry_motion);
+  // A malformed solid is refused, naming the box.
+  ImageBox bad = solid;
+  bad.solid->half.x() = -1.0F;
+  try {
+    (void)ds3d::filter_dynamic_keypoints(s.matrix(), {solid, bad}, kCam);
+    ADD_FAILURE() << "no exception";
+  } catch (const ds3d::InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("boxes[1].solid"), std::string::npos) << e.what();
+  }
 }
 
 TEST(DynamicFilter, SameResultWhenRepeated) {

@@ -28,6 +28,16 @@
 ///     gap (+3σ);
 ///  6. the dynamic regions of frame t−1 (image rectangle and depth range) are carried to frame t
 ///     for `carry_frames` frames when no box of frame t overlaps them, to cover detection misses.
+///
+/// Two metric gates narrow step 1 when the caller knows more than an image rectangle:
+///  * a **solid** (ImageBox::solid, an oriented 3-D box in the camera frame with its own metric
+///    uncertainty): a keypoint with depth is back-projected (undistorted) and gated in only when it
+///    lies inside the box grown by that uncertainty plus 3σ of its depth noise along each box axis
+///    (the rectangle and depth range of a projected box also hold the floor around a person's feet
+///    and whatever stands beside it at the same depth);
+///  * a **support plane** (the floor, camera frame): keypoints within `support_margin` plus 3σ of
+///    their depth noise (propagated onto the plane normal) of it are static, in every box: floor
+///    texture around a person's feet is not the person.
 
 #include <algorithm>
 #include <array>
@@ -50,7 +60,39 @@ namespace ds3d {
 /// not finite or <= 0 means "no depth". Row-major, numpy-compatible.
 using Keypoints3f = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
-/// An axis-aligned image box of a (possibly) moving object, with an optional depth range.
+/// An oriented 3-D box in the camera frame (x right, y down, z forward) with a metric uncertainty:
+/// the volume a keypoint must lie in to belong to the object.
+struct SolidBox {
+  Eigen::Vector3f centre = Eigen::Vector3f::Zero();    ///< box centre [m]
+  Eigen::Matrix3f axes = Eigen::Matrix3f::Identity();  ///< rows: unit box axes (orthonormal)
+  Eigen::Vector3f half = Eigen::Vector3f::Zero();      ///< half sizes along the axes [m], >= 0
+  float margin = 0.0F;  ///< the box's own uncertainty [m]: it grows by this per side, >= 0
+
+  /// True if camera-frame point `p` lies in the box grown by `margin` + `grow(axis)` per side.
+  /// @param p point [m], camera frame
+  /// @param ray ∂p/∂z = (x/z, y/z, 1): the direction a depth error moves the point along
+  /// @param sigma_z depth noise σ(z) of the point [m], >= 0; 3σ projected on each axis is added
+  /// @note O(1).
+  [[nodiscard]] bool contains(const Eigen::Vector3f& p, const Eigen::Vector3f& ray,
+                              float sigma_z) const noexcept {
+    const Eigen::Vector3f l = axes * (p - centre);
+    const Eigen::Vector3f spread = (axes * ray).cwiseAbs() * (3.0F * sigma_z);
+    return (l.cwiseAbs().array() <= half.array() + margin + spread.array()).all();
+  }
+};
+
+/// The oriented box spanned by 8 corners in any order (a cuboid: one corner's three edges are
+/// orthogonal and the other corners are their sums), or std::nullopt when the corners do not
+/// form a cuboid within `tol` (relative to the largest edge) or are not finite.
+/// @param corners 8 × 3 corners [m]
+/// @param margin the box's own uncertainty [m], >= 0 (stored in SolidBox::margin)
+/// @param tol relative tolerance of the cuboid test, > 0
+/// @note O(1): tries the 35 triples of edge candidates from corner 0.
+[[nodiscard]] inline std::optional<SolidBox> solid_from_corners(
+    const Eigen::Matrix<float, 8, 3>& corners, float margin, float tol = 1e-3F);
+
+/// An axis-aligned image box of a (possibly) moving object, with an optional depth range and an
+/// optional oriented 3-D box.
 struct ImageBox {
   float x_min = 0.0F;       ///< left edge [px], pixel-centre convention (camera.hpp)
   float y_min = 0.0F;       ///< top edge [px]
@@ -60,6 +102,9 @@ struct ImageBox {
   std::int32_t label = -1;  ///< class id (informative; -1 = unknown)
   float z_min = 0.0F;       ///< nearest depth of the object [m] when known (3-D box), else 0
   float z_max = 0.0F;       ///< farthest depth [m] when known, else 0 (z_max > 0 = known)
+  /// The object's oriented 3-D box, when known with a finite uncertainty: keypoints with depth
+  /// are then gated in 3-D (inside the grown box), not by the rectangle and depth range alone.
+  std::optional<SolidBox> solid{};
 
   /// True when the box carries a depth range (it came from a 3-D box or a carried region).
   [[nodiscard]] bool has_depth_range() const noexcept { return z_max > 0.0F; }
@@ -111,6 +156,10 @@ struct DynamicFilterParams {
   int carry_frames = 1;             ///< frames a dynamic region survives without a box, >= 0
   float carry_iou = 0.3F;     ///< a region overlapping a new box this much is not carried, (0, 1]
   float carry_motion = 0.3F;  ///< carried regions grow by this [m] (object motion per frame), >= 0
+  /// Keypoints within this distance [m] of the support plane (plus 3σ of their depth noise along
+  /// its normal) are static. Default: preprocess's ground RANSAC inlier threshold (0.02 m), the
+  /// band the plane was fitted to. >= 0.
+  float support_margin = 0.02F;
   /// Throws ds3d::InvalidArgument naming the first bad field and its value.
   void validate() const;
 };
@@ -131,6 +180,8 @@ struct BoxOutcome {
 /// Output of DynamicFeatureFilter::filter().
 struct DynamicFilterResult {
   std::vector<std::uint8_t> dynamic;  ///< one per keypoint: 1 = on a moving object, 0 = keep
+  int num_on_support = 0;             ///< keypoints in some box kept static on the support plane
+  int num_outside_solid = 0;          ///< keypoints in some box's rectangle outside its solid
   std::vector<BoxOutcome> boxes;      ///< one per processed box (detections, then carried regions)
   int num_dynamic = 0;                ///< number of ones in `dynamic`
   std::size_t num_non_finite = 0;     ///< keypoints with a non-finite u or v (always kept)
@@ -153,11 +204,15 @@ class DynamicFeatureFilter {
   /// @param boxes boxes of moving objects in this frame (finite, x_max >= x_min, y_max >= y_min,
   ///   score in [0, 1]; z range with 0 <= z_min <= z_max when given)
   /// @param camera image size (boxes are clipped to it) and focal lengths (pixel → metre scale)
-  /// @throws ds3d::InvalidArgument for a malformed box (names its index) or a bad camera.
+  /// @param support_plane the supporting plane (floor) in the camera frame, (n, d) with
+  ///   n·p + d = 0 (n is normalised here), or std::nullopt; keypoints on it are static
+  /// @throws ds3d::InvalidArgument for a malformed box (names its index), a non-finite or
+  ///   zero-normal support plane, or a bad camera.
   /// @note O(Σ_box n_b² ) for HDBSCAN's exact MST on the n_b keypoints of each box (Prim below
   ///   3000 points) plus O(N · boxes) for the gating; about 1 ms for 1000 keypoints in a box.
   DynamicFilterResult filter(Eigen::Ref<const Keypoints3f> keypoints,
-                             const std::vector<ImageBox>& boxes, const PinholeCamera& camera);
+                             const std::vector<ImageBox>& boxes, const PinholeCamera& camera,
+                             const std::optional<Eigen::Vector4f>& support_plane = std::nullopt);
 
   /// Forgets the carried regions (call between sequences).
   void reset() noexcept { carried_.clear(); }
@@ -183,11 +238,12 @@ class DynamicFeatureFilter {
 /// @throws ds3d::InvalidArgument like DynamicFeatureFilter::filter.
 [[nodiscard]] inline DynamicFilterResult filter_dynamic_keypoints(
     Eigen::Ref<const Keypoints3f> keypoints, const std::vector<ImageBox>& boxes,
-    const PinholeCamera& camera, const DynamicFilterParams& params = {}) {
+    const PinholeCamera& camera, const DynamicFilterParams& params = {},
+    const std::optional<Eigen::Vector4f>& support_plane = std::nullopt) {
   DynamicFilterParams p = params;
   p.carry_frames = 0;
   DynamicFeatureFilter f(p);
-  return f.filter(keypoints, boxes, camera);
+  return f.filter(keypoints, boxes, camera, support_plane);
 }
 
 }  // namespace ds3d

@@ -100,8 +100,17 @@ struct HtxSourceParams {
   float min_score = 0.3F;  ///< boxes with a lower score p[class]·objectness are dropped, [0, 1]
   /// Class names (from the weights' config) treated as dynamic; empty = every class.
   std::vector<std::string> classes{"person"};
-  int detect_every = 1;   ///< run the detector on every k-th frame (k >= 1); see HtxSource
-  int num_threads = 1;    ///< threads of preprocess and the detector's attention; 0 = all, >= 0
+  int detect_every = 1;  ///< run the detector on every k-th frame (k >= 1); see HtxSource
+  int num_threads = 1;   ///< threads of preprocess and the detector's attention; 0 = all, >= 0
+  /// Metric uncertainty of the detector's boxes [m], reported as DynamicObjects::boxes_3d_margin:
+  /// the masker keeps only keypoints inside each oriented box grown by this much per side (plus
+  /// 3σ of their depth noise); +inf gates by the projected rectangle and depth range alone (the
+  /// behaviour before session 7). >= 0.
+  float box_uncertainty = 0.15F;
+  /// Report the floor that preprocess found in the frame as DynamicObjects::support_plane (the
+  /// masker then keeps keypoints on it static). docs/dynamic.md, session 7: it raises the
+  /// synthetic precision and lowers Bonn's `htx`-only ATE; false restores the old behaviour.
+  bool report_floor = true;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 

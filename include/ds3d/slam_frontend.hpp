@@ -61,6 +61,14 @@ struct DynamicObjects {
   std::vector<float> scores;         ///< one confidence per 2-D box in [0, 1], or empty
   std::vector<Eigen::Matrix<float, 8, 3>> boxes_3d;  ///< corners of 3-D boxes, camera frame [m]
   cv::Mat pixel_mask;  ///< CV_8UC1 image-sized mask, non-zero = dynamic; or empty
+  /// Metric uncertainty [m] of each 3-D box, one per boxes_3d entry, or empty (= all infinite).
+  /// With a finite value the masker gates keypoints by the oriented box grown by it (3-D
+  /// containment); infinite (or a box whose corners are not a cuboid): by the box's image
+  /// rectangle and depth range only, as for sources that give loose evidence boxes.
+  std::vector<float> boxes_3d_margin;
+  /// The supporting plane (floor) in the camera frame, (n, d) with n·p + d = 0, when the source
+  /// found one; the masker keeps keypoints on it static (dynamic_filter.hpp).
+  std::optional<Eigen::Vector4f> support_plane;
 };
 
 /// Stage "dynamic-object source": finds moving objects in a frame (runs beside feature

@@ -26,3 +26,51 @@ def test_bad_params_raise_value_error():
     p.min_cluster_size = 1
     with pytest.raises(ValueError, match="min_cluster_size"):
         ds3d.DynamicFeatureFilter(p)
+
+
+def test_support_plane_and_solid_box():
+    # Camera 1.2 m above a textured floor (y down: floor y = 1.2 m); a person 2.5 m ahead in a
+    # loose box that reaches below the feet: with the floor plane, floor keypoints stay static.
+    rng = np.random.default_rng(3)
+    f, cx, cy = 525.0, 319.5, 239.5
+
+    def project(x, y, z):
+        return np.column_stack([f * x / z + cx, f * y / z + cy, z])
+
+    z = rng.uniform(1.0, 5.0, 1500)
+    floor = project(rng.uniform(-2, 2, 1500), np.full(1500, 1.2), z)
+    zp = 2.5 + rng.uniform(-0.15, 0.15, 300)
+    person = project(rng.uniform(-0.25, 0.25, 300), rng.uniform(-0.5, 1.2, 300), zp)
+    kp = np.vstack([floor, person]).astype(np.float32)
+    ok = (kp[:, 0] >= 0) & (kp[:, 0] <= 639) & (kp[:, 1] >= 0) & (kp[:, 1] <= 479)
+    is_floor = np.arange(len(kp)) < len(floor)
+    kp, is_floor = kp[ok], is_floor[ok]
+    loose = ds3d.ImageBox(cx - f * 0.65 / 2.5, cy + f * -0.6 / 2.5, cx + f * 0.65 / 2.5,
+                          cy + f * 1.5 / 2.5, score=0.9)
+    plain = np.asarray(ds3d.DynamicFeatureFilter().filter(kp, [loose]).dynamic, bool)
+    r = ds3d.DynamicFeatureFilter().filter(kp, [loose], support_plane=[0, -1, 0, 1.2])
+    dyn = np.asarray(r.dynamic, bool)
+    assert (plain & is_floor).sum() > 20  # the failure the plane fixes
+    assert not (dyn & is_floor).any() and r.num_on_support > 20
+    assert dyn[~is_floor].mean() >= 0.9
+    with pytest.raises(ValueError, match="support_plane"):
+        ds3d.DynamicFeatureFilter().filter(kp, [loose], support_plane=[0, 0, 0, 1])
+
+    # SolidBox from cuboid corners (any order); a point beside the box is outside it.
+    corners = np.array([[x, y, zz] for x in (-0.3, 0.3) for y in (-0.85, 0.85)
+                        for zz in (2.0, 3.0)], np.float32)[[3, 0, 6, 1, 7, 2, 5, 4]]
+    solid = ds3d.solid_from_corners(corners, margin=0.05)
+    assert solid is not None and np.allclose(solid.centre, [0, 0, 2.5], atol=1e-5)
+    assert np.allclose(sorted(solid.half), [0.3, 0.5, 0.85], atol=1e-5)
+    assert solid.contains([0.32, 0.0, 2.9]) and not solid.contains([0.4, 0.0, 2.9])
+    bent = corners.copy()
+    bent[0, 0] += 0.1
+    assert ds3d.solid_from_corners(bent) is None
+    box = ds3d.ImageBox(100, 0, 500, 479, score=0.9, z_min=2.0, z_max=3.0)
+    assert box.solid is None
+    box.solid = solid
+    assert box.solid is not None and box.solid.margin == pytest.approx(0.05)
+    p = ds3d.DynamicFilterParams()
+    p.support_margin = -1
+    with pytest.raises(ValueError, match="support_margin"):
+        ds3d.DynamicFeatureFilter(p)

@@ -71,6 +71,23 @@ def test_image_boxes_and_keypoint_array(detections):
     assert kp.shape == (len(f), 3) and kp.dtype == np.float32
     assert np.array_equal(kp[:, :2], f.keypoints) and np.allclose(kp[:, 2], 2.0)
     assert np.allclose(ds3d.keypoint_array(f, None, CAM)[:, 2], f.depth)
+    assert boxes[1].solid is None  # a file's 3-D box has no metric uncertainty
+    # With one, image_boxes makes the oriented box the masker gates in 3-D.
+    o3 = ds3d.DynamicObjects(boxes_3d=[CORNERS], boxes_3d_margin=[0.1],
+                             support_plane=[0, -1, 0, 1.2])
+    assert np.allclose(o3.boxes_3d_margin, [0.1]) and np.allclose(o3.support_plane, [0, -1, 0, 1.2])
+    s = ds3d.image_boxes(o3, CAM)[0].solid
+    assert s is not None and s.margin == pytest.approx(0.1)
+    assert np.allclose(sorted(s.half), [0.2, 0.2, 0.5], atol=1e-5)
+    loose = ds3d.DynamicObjects(boxes_3d=[CORNERS], boxes_3d_margin=[np.inf])
+    assert ds3d.image_boxes(loose, CAM)[0].solid is None
+    assert ds3d.DynamicObjects().support_plane is None
+    with pytest.raises(ValueError, match="boxes_3d_margin"):
+        ds3d.DynamicObjects(boxes_3d=[CORNERS], boxes_3d_margin=[0.1, 0.2])
+    with pytest.raises(ValueError, match="boxes_3d_margin"):
+        ds3d.DynamicObjects(boxes_3d=[CORNERS], boxes_3d_margin=[-0.1])
+    with pytest.raises(ValueError, match="support_plane"):
+        ds3d.DynamicObjects(support_plane=[0, 0, 0, 1])
 
 
 def test_hdbscan_masker_flags_the_near_object_in_its_box():
@@ -179,9 +196,17 @@ def test_make_dynamic_source_builds_htx_and_composites():
         assert src.name == spec
         o = src.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
         assert o.boxes_3d.shape[1:] == (8, 3) and np.all(np.isfinite(o.boxes_3d))
+        if spec == "htx":  # one metric uncertainty per box, the floor of the frame
+            assert np.allclose(o.boxes_3d_margin, 0.15) and len(o.boxes_3d_margin) == len(o.boxes_3d)
+            assert o.support_plane is not None and o.support_plane[1] < -0.8
         if spec != "htx&geometric":  # the gate needs motion, which a first frame cannot show
             assert len(o.boxes_3d) > 0  # min_score 0 keeps the untrained fixture's boxes
     with pytest.raises(RuntimeError, match="nonexistent"):
         ds3d.make_dynamic_source("htx", weights="/nonexistent/w.safetensors")
     with pytest.raises(ValueError, match="detect_every"):
         ds3d.make_dynamic_source("htx", weights=weights, detect_every=0)
+    loose = ds3d.make_dynamic_source("htx", weights=weights, min_score=0.0,
+                                     box_uncertainty=float("inf"))
+    assert np.all(np.isinf(loose.detect(f["rgb"], f["depth"], f["timestamp"], CAM).boxes_3d_margin))
+    with pytest.raises(ValueError, match="box_uncertainty"):
+        ds3d.make_dynamic_source("htx", weights=weights, box_uncertainty=-1.0)

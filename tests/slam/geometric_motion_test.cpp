@@ -7,7 +7,10 @@
 // DS3D_GEOM_TEST_SOURCE=SPEC (a `--dynamic` value of ds3d-slam, e.g. htx or htx&geometric) runs
 // StaticRoomStaysClean and SyntheticScenariosAgainstMasks with that source instead; the latter
 // then prints its figures without checking them (docs/dynamic.md: the HTx source on the
-// synthetic scenarios). The other tests always run the geometric source.
+// synthetic scenarios). The other tests always run the geometric source. Measurement knobs for
+// that mode (docs/dynamic.md, session 7): DS3D_GEOM_TEST_HTX_UNCERTAINTY=M sets
+// HtxSourceParams::box_uncertainty (metres, or inf), DS3D_GEOM_TEST_NO_PLANE=1 drops the
+// source's support plane before the masker.
 #include "ds3d/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
@@ -21,6 +24,7 @@
 #include <memory>
 #include <optional>
 #include <random>
+#include <string>
 #include <tuple>
 
 #include <opencv2/features2d.hpp>
@@ -69,14 +73,22 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
   GeometricMotionSource src(gp);
   // Another source to measure (see the file comment); the geometric trace then stays empty.
   std::shared_ptr<ds3d::slam::DynamicObjectSource> other;
-  if (other_spec != nullptr) other = ds3d::slam::make_dynamic_source(other_spec);
+  if (other_spec != nullptr) {
+    ds3d::slam::DynamicSourceOptions opt;
+    if (const char* u = std::getenv("DS3D_GEOM_TEST_HTX_UNCERTAINTY"); u != nullptr) {
+      opt.htx.box_uncertainty = std::stof(u);
+    }
+    other = ds3d::slam::make_dynamic_source(other_spec, opt);
+  }
+  const bool drop_plane = std::getenv("DS3D_GEOM_TEST_NO_PLANE") != nullptr;
   ds3d::slam::HdbscanMasker masker;
   const ds3d::slam::OrbExtractor orb;
   const bool trace = std::getenv("DS3D_DEBUG_GEOM") != nullptr;
   Counts c;
   for (std::size_t i = 0; i < n; ++i) {
     const Frame f = get(i);
-    const auto obj = other ? other->detect(f.input, cam) : src.detect(f.input, cam);
+    auto obj = other ? other->detect(f.input, cam) : src.detect(f.input, cam);
+    if (drop_plane) obj.support_plane.reset();
     const auto feats = orb.extract(f.input.rgb, f.input.depth, cam);
     const auto m = masker.mask(f.input, cam, feats, obj);
     if (trace) {
@@ -117,6 +129,16 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
                                            : cv::Scalar(0, 200, 0);
         cv::circle(img, cv::Point2f(t.u, t.v), t.moving ? 4 : 2, col, t.moving ? 2 : 1);
       }
+      // The masker's decisions: dynamic keypoints on people filled red, elsewhere filled cyan.
+      for (std::size_t k = 0; k < m.size() && !f.truth.empty(); ++k) {
+        if (m[k] == 0U) continue;
+        const cv::Point2f p = feats.keypoints[k].pt;
+        const bool on =
+            f.truth.at<std::uint8_t>(
+                std::clamp(static_cast<int>(std::lround(p.y)), 0, f.truth.rows - 1),
+                std::clamp(static_cast<int>(std::lround(p.x)), 0, f.truth.cols - 1)) != 0U;
+        cv::circle(img, p, 3, on ? cv::Scalar(0, 0, 255) : cv::Scalar(255, 255, 0), -1);
+      }
       for (const auto& b : ds3d::slam::image_boxes(obj, cam)) {
         cv::rectangle(img, cv::Point2f(b.x_min, b.y_min), cv::Point2f(b.x_max, b.y_max),
                       cv::Scalar(255, 128, 0), 2);
@@ -126,17 +148,30 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
                   img);
     }
     if (trace && !f.truth.empty()) {
-      int tp = 0, fn = 0;
+      int tp = 0, fn = 0, fp = 0;
       for (std::size_t k = 0; k < m.size(); ++k) {
         const int u =
             std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.x)), 0, f.truth.cols - 1);
         const int v =
             std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.y)), 0, f.truth.rows - 1);
-        if (f.truth.at<std::uint8_t>(v, u) == 0U) continue;
+        if (f.truth.at<std::uint8_t>(v, u) == 0U) {
+          fp += m[k] != 0U ? 1 : 0;
+          continue;
+        }
         tp += m[k] != 0U ? 1 : 0;
         fn += m[k] == 0U ? 1 : 0;
       }
-      std::cout << i << " frame tp " << tp << " fn " << fn << "\n";
+      std::cout << i << " frame tp " << tp << " fn " << fn << " fp " << fp << " boxes "
+                << obj.boxes_3d.size() << " plane " << obj.support_plane.has_value() << " on_plane "
+                << masker.last_result().num_on_support << " outside_solid "
+                << masker.last_result().num_outside_solid << "\n";
+      for (const auto& b : masker.last_result().boxes) {
+        std::cout << "  box " << b.box.x_min << "," << b.box.y_min << "-" << b.box.x_max << ","
+                  << b.box.y_max << " z " << b.box.z_min << "-" << b.box.z_max << " carried "
+                  << b.carried << " solid " << b.box.solid.has_value() << " kp " << b.num_keypoints
+                  << " depth " << b.num_with_depth << " clusters " << b.num_clusters << " dyn "
+                  << b.num_dynamic << " fg " << b.z_front << "-" << b.z_back << "\n";
+      }
     }
     if (i < from) continue;
     c.frames_with_objects += obj.boxes_3d.empty() ? 0 : 1;

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 #include <set>
 #include <string>
 #include <vector>
@@ -184,6 +185,34 @@ TEST(HtxSource, KnownBoxReachesTheFilterAndDropsTheKeypointsInside) {
   EXPECT_EQ(points_seen, 4096U);
   ASSERT_EQ(obj.boxes_3d.size(), 1U);
   ASSERT_EQ(src.last_boxes().size(), 1U);
+  // Session 7: each box carries the detector's metric uncertainty, and the frame its floor
+  // (camera frame, unit normal pointing up = camera −y side, the camera above it).
+  ASSERT_EQ(obj.boxes_3d_margin.size(), 1U);
+  EXPECT_FLOAT_EQ(obj.boxes_3d_margin[0], src.params().box_uncertainty);
+  ASSERT_TRUE(obj.support_plane.has_value());
+  EXPECT_NEAR(obj.support_plane->head<3>().norm(), 1.0F, 1e-5F);
+  EXPECT_LT(obj.support_plane->y(), -0.8F);
+  EXPECT_GT(obj.support_plane->w(), 0.3F);  // camera height above the floor [m]
+  {
+    const auto ib = ds3d::slam::image_boxes(obj, camera);
+    ASSERT_EQ(ib.size(), 1U);
+    ASSERT_TRUE(ib[0].solid.has_value());
+    EXPECT_FLOAT_EQ(ib[0].solid->margin, src.params().box_uncertainty);
+    DynamicObjects loose = obj;
+    loose.boxes_3d_margin = {std::numeric_limits<float>::infinity()};
+    EXPECT_FALSE(ds3d::slam::image_boxes(loose, camera)[0].solid.has_value());
+    loose.boxes_3d_margin = {-0.1F};
+    EXPECT_THROW((void)ds3d::slam::image_boxes(loose, camera), ds3d::InvalidArgument);
+    loose.boxes_3d_margin = {0.1F, 0.1F};
+    EXPECT_THROW((void)ds3d::slam::image_boxes(loose, camera), ds3d::InvalidArgument);
+    ds3d::slam::HtxSourceParams no_floor;
+    no_floor.report_floor = false;
+    HtxSource quiet(fake, {"person", "chair"}, no_floor);
+    source = &quiet;
+    EXPECT_FALSE(quiet.detect(in, camera).support_plane.has_value());
+    EXPECT_TRUE(quiet.last_stats().ground_found);
+    source = &src;
+  }
   const auto corners = ds3d::box::corners(given[0]);
   const Eigen::Matrix3f R_cam_up = src.R_up_cam().transpose();
   for (int k = 0; k < 8; ++k) {
@@ -347,12 +376,34 @@ TEST(CompositeSource, SecondSourceSeesTheFrameWithoutTheFirstsObjects) {
   ASSERT_EQ(o.boxes_2d.size(), 1U);
   ASSERT_EQ(o.scores.size(), 1U);
   ASSERT_EQ(o.boxes_3d.size(), 1U);
+  EXPECT_TRUE(o.boxes_3d_margin.empty());
+  EXPECT_FALSE(o.support_plane.has_value());
   EXPECT_EQ(cv::countNonZero(f.depth != 10000), 0);             // caller's image untouched
   EXPECT_EQ(cv::countNonZero(a->seen_depth != 10000), 0);       // first sees everything
   EXPECT_EQ(b->seen_depth.at<std::uint16_t>(140, 125), 0);      // inside the first's box
   EXPECT_EQ(b->seen_depth.at<std::uint16_t>(300, 400), 10000);  // elsewhere
   EXPECT_EQ(b->seen_depth.at<std::uint16_t>(140, 160), 10000);  // right of the box
   EXPECT_THROW(ds3d::slam::CompositeSource(a, nullptr), ds3d::InvalidArgument);
+  {
+    // Margins stay one per 3-D box (+inf for a source that gives none); the first plane wins.
+    auto m = std::make_shared<Fixed>();
+    m->out.boxes_3d.push_back(c);
+    m->out.boxes_3d_margin.push_back(0.1F);
+    m->out.support_plane = Eigen::Vector4f(0.0F, -1.0F, 0.0F, 1.0F);
+    const DynamicObjects u = ds3d::slam::CompositeSource(b, m).detect(f, ds3d::PinholeCamera{});
+    ASSERT_EQ(u.boxes_3d.size(), 2U);
+    ASSERT_EQ(u.boxes_3d_margin.size(), 2U);
+    EXPECT_TRUE(std::isinf(u.boxes_3d_margin[0]));
+    EXPECT_FLOAT_EQ(u.boxes_3d_margin[1], 0.1F);
+    ASSERT_TRUE(u.support_plane.has_value());
+    EXPECT_FLOAT_EQ(u.support_plane->w(), 1.0F);
+    const DynamicObjects g = ds3d::slam::MotionGatedSource(m, b).detect(f, ds3d::PinholeCamera{});
+    ASSERT_EQ(g.boxes_3d.size(), 2U);  // the motion box, then the kept semantic box
+    ASSERT_EQ(g.boxes_3d_margin.size(), 2U);
+    EXPECT_TRUE(std::isinf(g.boxes_3d_margin[0]));
+    EXPECT_FLOAT_EQ(g.boxes_3d_margin[1], 0.1F);
+    EXPECT_TRUE(g.support_plane.has_value());
+  }
 }
 
 // The gate keeps a semantic box only where the motion source found something in the frame:

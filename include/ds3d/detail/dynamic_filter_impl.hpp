@@ -4,6 +4,7 @@
 // Implementation of dynamic_filter.hpp. Not API.
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -40,6 +41,65 @@ inline void DynamicFilterParams::validate() const {
              ": carry_iou must be in (0, 1] (got ", carry_iou, ")");
   DS3D_CHECK(std::isfinite(carry_motion) && carry_motion >= 0.0F, f,
              ": carry_motion must be >= 0 (got ", carry_motion, ")");
+  DS3D_CHECK(std::isfinite(support_margin) && support_margin >= 0.0F, f,
+             ": support_margin must be >= 0 (got ", support_margin, ")");
+}
+
+inline std::optional<SolidBox> solid_from_corners(const Eigen::Matrix<float, 8, 3>& corners,
+                                                  float margin, float tol) {
+  constexpr const char* f = "ds3d::solid_from_corners";
+  DS3D_CHECK(std::isfinite(margin) && margin >= 0.0F, f, ": margin must be >= 0 (got ", margin,
+             ")");
+  DS3D_CHECK(std::isfinite(tol) && tol > 0.0F, f, ": tol must be > 0 (got ", tol, ")");
+  if (!corners.allFinite()) return std::nullopt;
+  // Edge candidates: the other corners relative to corner 0. A cuboid has three orthogonal ones
+  // (its edges at corner 0) whose sums are the remaining four.
+  std::array<Eigen::Vector3d, 7> d;
+  double scale = 0.0;
+  for (int k = 0; k < 7; ++k) {
+    d[static_cast<std::size_t>(k)] =
+        (corners.row(k + 1) - corners.row(0)).transpose().cast<double>();
+    scale = std::max(scale, d[static_cast<std::size_t>(k)].norm());
+  }
+  if (!(scale > 0.0)) return std::nullopt;
+  const double t = static_cast<double>(tol) * scale;
+  for (std::size_t i = 0; i < 7; ++i) {
+    for (std::size_t j = i + 1; j < 7; ++j) {
+      for (std::size_t k = j + 1; k < 7; ++k) {
+        const Eigen::Vector3d& a = d[i];
+        const Eigen::Vector3d& b = d[j];
+        const Eigen::Vector3d& c = d[k];
+        if (a.norm() <= t || b.norm() <= t || c.norm() <= t) continue;
+        if (std::abs(a.dot(b)) > t * scale || std::abs(a.dot(c)) > t * scale ||
+            std::abs(b.dot(c)) > t * scale) {
+          continue;
+        }
+        const std::array<Eigen::Vector3d, 7> sums = {a, b, c, a + b, a + c, b + c, a + b + c};
+        std::array<bool, 7> used{};
+        bool all = true;
+        for (const Eigen::Vector3d& s : sums) {
+          bool found = false;
+          for (std::size_t q = 0; q < 7 && !found; ++q) {
+            if (!used[q] && (d[q] - s).norm() <= t) {
+              used[q] = true;
+              found = true;
+            }
+          }
+          all = all && found;
+        }
+        if (!all) continue;
+        SolidBox out;
+        out.centre = (corners.row(0).transpose().cast<double>() + (a + b + c) / 2.0).cast<float>();
+        out.axes.row(0) = a.normalized().cast<float>().transpose();
+        out.axes.row(1) = b.normalized().cast<float>().transpose();
+        out.axes.row(2) = c.normalized().cast<float>().transpose();
+        out.half = Eigen::Vector3d(a.norm(), b.norm(), c.norm()).cast<float>() / 2.0F;
+        out.margin = margin;
+        return out;
+      }
+    }
+  }
+  return std::nullopt;
 }
 
 inline std::optional<ImageBox> project_box(const Eigen::Matrix<float, 8, 3>& corners_cam,
@@ -128,11 +188,20 @@ struct Region {
 
 }  // namespace detail
 
-inline DynamicFilterResult DynamicFeatureFilter::filter(Eigen::Ref<const Keypoints3f> keypoints,
-                                                        const std::vector<ImageBox>& boxes,
-                                                        const PinholeCamera& camera) {
+inline DynamicFilterResult DynamicFeatureFilter::filter(
+    Eigen::Ref<const Keypoints3f> keypoints, const std::vector<ImageBox>& boxes,
+    const PinholeCamera& camera, const std::optional<Eigen::Vector4f>& support_plane) {
   constexpr const char* f = "ds3d::DynamicFeatureFilter::filter";
   camera.validate(f);
+  std::optional<Eigen::Vector4f> plane;
+  if (support_plane) {
+    const Eigen::Vector4f& q = *support_plane;
+    const float nn = q.head<3>().norm();
+    DS3D_CHECK(q.allFinite() && nn > 0.0F, f,
+               ": support_plane must be finite with a non-zero normal (got ", q.x(), ", ", q.y(),
+               ", ", q.z(), ", ", q.w(), ")");
+    plane = q / nn;
+  }
   for (std::size_t b = 0; b < boxes.size(); ++b) {
     const ImageBox& x = boxes[b];
     DS3D_CHECK(std::isfinite(x.x_min) && std::isfinite(x.y_min) && std::isfinite(x.x_max) &&
@@ -145,6 +214,14 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(Eigen::Ref<const Keypoin
         std::isfinite(x.z_min) && std::isfinite(x.z_max) && x.z_min >= 0.0F && x.z_max >= x.z_min,
         f, ": boxes[", b, "] depth range must satisfy 0 <= z_min <= z_max (got ", x.z_min, ", ",
         x.z_max, ")");
+    if (x.solid) {
+      const SolidBox& s = *x.solid;
+      DS3D_CHECK(s.centre.allFinite() && s.axes.allFinite() && s.half.allFinite() &&
+                     (s.half.array() >= 0.0F).all() && std::isfinite(s.margin) && s.margin >= 0.0F,
+                 f, ": boxes[", b,
+                 "].solid must be finite with half sizes >= 0 and margin >= 0 (got half ",
+                 s.half.x(), ", ", s.half.y(), ", ", s.half.z(), ", margin ", s.margin, ")");
+    }
   }
 
   const auto n = static_cast<std::size_t>(keypoints.rows());
@@ -159,6 +236,7 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(Eigen::Ref<const Keypoin
 
   const auto sigma = [&](float z) { return params_.depth_noise * z * z; };
   const auto gap_at = [&](float z) { return params_.depth_gap + 3.0F * sigma(z); };
+
   const float img_u1 = static_cast<float>(camera.width) - 0.5F;
   const float img_v1 = static_cast<float>(camera.height) - 0.5F;
 
@@ -200,8 +278,38 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(Eigen::Ref<const Keypoin
     g.y_max = std::min(g.y_max + dv, img_v1);
     g.z_min = std::max(0.0F, g.z_min - params_.carry_motion);
     g.z_max = g.z_max + params_.carry_motion;
+    // A region found in a solid box keeps that box, grown by the same motion.
+    if (g.solid) g.solid->margin += params_.carry_motion;
     if (g.x_max > g.x_min && g.y_max > g.y_min) work.emplace_back(g, c.age);
   }
+
+  // Metric gates (solids, support plane) need each depth keypoint's ray ∂p/∂z = (x/z, y/z, 1),
+  // undistorted: computed once per frame, only when a gate is in use.
+  const bool any_solid = std::any_of(work.begin(), work.end(),
+                                     [](const auto& w) { return w.first.solid.has_value(); });
+  std::vector<Eigen::Vector3f> ray;
+  std::vector<std::uint8_t> on_support;
+  if (any_solid || plane) {
+    ray.assign(n, Eigen::Vector3f::Zero());
+    on_support.assign(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto r = static_cast<Eigen::Index>(i);
+      if (finite_uv[i] == 0U || !detail::valid_depth(keypoints(r, 2))) continue;
+      const Eigen::Vector2d xn = camera.undistort(
+          {(keypoints(r, 0) - camera.cx) / camera.fx, (keypoints(r, 1) - camera.cy) / camera.fy});
+      ray[i] = Eigen::Vector3f(static_cast<float>(xn.x()), static_cast<float>(xn.y()), 1.0F);
+      if (plane) {
+        const float z = keypoints(r, 2);
+        const Eigen::Vector3f p = ray[i] * z;
+        const float dist = std::abs(plane->head<3>().dot(p) + plane->w());
+        // The depth error moves the point along its ray: σ along the normal is σ(z)·|n·ray|.
+        const float sn = sigma(z) * std::abs(plane->head<3>().dot(ray[i]));
+        on_support[i] = dist <= params_.support_margin + 3.0F * sn ? 1 : 0;
+      }
+    }
+  }
+  std::vector<std::uint8_t> seen_support(on_support.empty() ? 0 : n, 0);
+  std::vector<std::uint8_t> seen_outside(any_solid ? n : 0, 0);
 
   std::vector<Carried> next;
   std::vector<std::size_t> in_box;
@@ -222,6 +330,17 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(Eigen::Ref<const Keypoin
       // A depth range (3-D box or carried region) excludes everything outside it outright.
       if (box.has_depth_range() &&
           (z < box.z_min - 3.0F * sigma(box.z_min) || z > box.z_max + 3.0F * sigma(box.z_max))) {
+        continue;
+      }
+      // Floor texture is static, whichever box it falls in.
+      if (!on_support.empty() && on_support[i] != 0U) {
+        seen_support[i] = 1;
+        continue;
+      }
+      // An oriented 3-D box gates in 3-D: the rectangle and depth range of its projection also
+      // hold the floor and furniture beside and below the object.
+      if (box.solid && !box.solid->contains(ray[i] * z, ray[i], sigma(z))) {
+        seen_outside[i] = 1;
         continue;
       }
       with_depth.push_back(i);
@@ -406,12 +525,15 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(Eigen::Ref<const Keypoin
       region.z_max = fg.z1;
       region.score = box.score;
       region.label = box.label;
+      region.solid = box.solid;
       const int new_age = age < 0 ? 0 : age + 1;
       if (new_age < params_.carry_frames) next.push_back({region, new_age});
     }
     res.boxes.push_back(out);
   }
   carried_ = std::move(next);
+  for (std::size_t i = 0; i < seen_support.size(); ++i) res.num_on_support += seen_support[i];
+  for (std::size_t i = 0; i < seen_outside.size(); ++i) res.num_outside_solid += seen_outside[i];
   return res;
 }
 

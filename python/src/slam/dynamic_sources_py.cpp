@@ -49,7 +49,8 @@ std::vector<cv::Rect2f> rects_from(const char* fn, const py::handle& obj) {
 }
 
 DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores,
-                            const py::object& boxes_3d, const py::object& pixel_mask) {
+                            const py::object& boxes_3d, const py::object& pixel_mask,
+                            const py::object& boxes_3d_margin, const py::object& support_plane) {
   constexpr const char* fn = "ds3d.DynamicObjects";
   DynamicObjects o;
   if (!boxes_2d.is_none()) o.boxes_2d = rects_from(fn, boxes_2d);
@@ -79,6 +80,29 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
       }
       o.boxes_3d.push_back(c);
     }
+  }
+  if (!boxes_3d_margin.is_none()) {
+    const auto a =
+        py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(boxes_3d_margin);
+    DS3D_CHECK(a && a.ndim() == 1 && static_cast<std::size_t>(a.shape(0)) == o.boxes_3d.size(), fn,
+               ": boxes_3d_margin must be a (K,) array, one per 3-D box (got ",
+               pu::describe(boxes_3d_margin), " for ", o.boxes_3d.size(), " boxes)");
+    for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+      const float v = a.at(i);
+      DS3D_CHECK(v >= 0.0F, fn, ": boxes_3d_margin[", i, "] must be >= 0 or inf (got ", v, ")");
+      o.boxes_3d_margin.push_back(v);
+    }
+  }
+  if (!support_plane.is_none()) {
+    const auto a =
+        py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(support_plane);
+    DS3D_CHECK(a && a.ndim() == 1 && a.shape(0) == 4, fn,
+               ": support_plane must be a (4,) array (a, b, c, d) (got ",
+               pu::describe(support_plane), ")");
+    const Eigen::Vector4f q(a.at(0), a.at(1), a.at(2), a.at(3));
+    DS3D_CHECK(q.allFinite() && q.head<3>().norm() > 0.0F, fn,
+               ": support_plane must be finite with a non-zero normal");
+    o.support_plane = q;
   }
   if (!pixel_mask.is_none()) {
     const auto m = pu::exact<std::uint8_t>(fn, "pixel_mask", pixel_mask, "an (H, W) uint8 array");
@@ -132,11 +156,13 @@ void bind_dynamic_sources(py::module_& m) {
   py::class_<DynamicObjects>(
       m, "DynamicObjects",
       "What a dynamic-object source found in one frame (include/ds3d/slam_frontend.hpp).\n"
-      "DynamicObjects(boxes_2d=None, scores=None, boxes_3d=None, pixel_mask=None) builds one from\n"
+      "DynamicObjects(boxes_2d=None, scores=None, boxes_3d=None, pixel_mask=None,\n"
+      "boxes_3d_margin=None, support_plane=None) builds one from\n"
       "your own detector's output (ValueError on bad shapes, non-finite values, inverted boxes).")
       .def(py::init(&objects_from), py::arg("boxes_2d") = py::none(),
            py::arg("scores") = py::none(), py::arg("boxes_3d") = py::none(),
-           py::arg("pixel_mask") = py::none())
+           py::arg("pixel_mask") = py::none(), py::arg("boxes_3d_margin") = py::none(),
+           py::arg("support_plane") = py::none())
       .def_property_readonly(
           "boxes_2d",
           [](const DynamicObjects& o) {
@@ -173,6 +199,18 @@ void bind_dynamic_sources(py::module_& m) {
           },
           "(K, 8, 3) float32 corners of 3-D boxes in the camera frame (x right, y down, z forward) "
           "[m].")
+      .def_property_readonly(
+          "boxes_3d_margin",
+          [](const DynamicObjects& o) { return ds3d::py_util::to_numpy(o.boxes_3d_margin); },
+          "(K,) float32 metric uncertainty [m] per 3-D box (inf: rectangle and depth range "
+          "only), or empty.")
+      .def_property_readonly(
+          "support_plane",
+          [](const DynamicObjects& o) -> py::object {
+            if (!o.support_plane) return py::none();
+            return py::cast(Eigen::Vector4f(*o.support_plane));
+          },
+          "(4,) floor plane (a, b, c, d) in the camera frame, or None.")
       .def_property_readonly(
           "pixel_mask",
           [](const DynamicObjects& o) -> py::object {
@@ -284,20 +322,25 @@ void bind_dynamic_sources(py::module_& m) {
   m.def(
       "make_dynamic_source",
       [](const std::string& spec, const py::object& weights, int detect_every,
-         std::optional<float> min_score) {
+         std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor) {
         ds3d::slam::DynamicSourceOptions o;
         o.weights = pu::path_from(weights);
         o.htx.detect_every = detect_every;
         if (min_score) o.htx.min_score = *min_score;
+        if (box_uncertainty) o.htx.box_uncertainty = *box_uncertainty;
+        o.htx.report_floor = report_floor;
         return ds3d::slam::make_dynamic_source(spec, o);
       },
       py::arg("spec"), py::arg("weights") = "", py::arg("detect_every") = 1,
-      py::arg("min_score") = py::none(),
+      py::arg("min_score") = py::none(), py::arg("box_uncertainty") = py::none(),
+      py::arg("report_floor") = true,
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric') or 'A&B' (A's boxes only where B sees\n"
       "motion, e.g. 'htx&geometric'); weights = htx weights file ('' = the default model), "
       "detect_every\n"
-      ">= 1 and min_score in [0, 1] for htx. ValueError for an unknown name or bad options,\n"
+      ">= 1, min_score in [0, 1] and box_uncertainty [m] (>= 0 or inf) and report_floor for htx. "
+      "ValueError for\n"
+      "an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");
 
   m.def(
