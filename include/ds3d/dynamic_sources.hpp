@@ -108,9 +108,11 @@ struct HtxSourceParams {
   /// behaviour before session 7). >= 0.
   float box_uncertainty = 0.15F;
   /// Report the floor that preprocess found in the frame as DynamicObjects::support_plane (the
-  /// masker then keeps keypoints on it static). docs/dynamic.md, session 7: it raises the
-  /// synthetic precision and lowers Bonn's `htx`-only ATE; false restores the old behaviour.
-  bool report_floor = true;
+  /// masker then keeps keypoints on it static; `ds3d-slam --floor`). Off by default: on the
+  /// synthetic scenes it raises precision from ≈ 0.5 to 0.91–0.95 on walking_xyz/static and
+  /// fr1's `htx` ATE improves, but on the recorded people (Bonn crowd ATE, the TUM fr3 person
+  /// masks) it removes fewer person keypoints (docs/dynamic.md, session 7).
+  bool report_floor = false;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 

@@ -192,7 +192,7 @@ def test_make_dynamic_source_builds_htx_and_composites():
     weights = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "htx" / "tiny_weights.safetensors"
     f = ds3d.synth.Scene("walking_xyz", frames=1, seed=3).render(0)
     for spec in ("htx", "htx+geometric", "geometric+htx", "htx&geometric"):
-        src = ds3d.make_dynamic_source(spec, weights=weights, min_score=0.0)
+        src = ds3d.make_dynamic_source(spec, weights=weights, min_score=0.0, report_floor=True)
         assert src.name == spec
         o = src.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
         assert o.boxes_3d.shape[1:] == (8, 3) and np.all(np.isfinite(o.boxes_3d))
@@ -210,3 +210,6 @@ def test_make_dynamic_source_builds_htx_and_composites():
     assert np.all(np.isinf(loose.detect(f["rgb"], f["depth"], f["timestamp"], CAM).boxes_3d_margin))
     with pytest.raises(ValueError, match="box_uncertainty"):
         ds3d.make_dynamic_source("htx", weights=weights, box_uncertainty=-1.0)
+    # The floor is reported only on request (report_floor, off by default).
+    plain = ds3d.make_dynamic_source("htx", weights=weights, min_score=0.0)
+    assert plain.detect(f["rgb"], f["depth"], f["timestamp"], CAM).support_plane is None

@@ -42,7 +42,8 @@ constexpr const char* kUsage =
     "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
     "                 [--dynamic none|geometric|htx|htx+geometric|htx&geometric|file:PATH]\n"
     "                 [--weights PATH]\n"
-    "                 [--detect-every K] [--min-score S] [--max-frames N] [--stats stats.json] "
+    "                 [--detect-every K] [--min-score S] [--floor] [--max-frames N] [--stats "
+    "stats.json] "
     "[--viz OUT_DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
     "                 [--fusion] [--local-window N] [--bf BF] [--kf-ratio R]\n"
@@ -60,7 +61,10 @@ constexpr const char* kUsage =
     "--weights: HTx weights file (default: models/htx_lite_fast.safetensors of the source tree,\n"
     "  else <prefix>/share/ds3d/models/). --detect-every K: run the detector on every K-th frame\n"
     "  (default 1; the frames between reuse its boxes). --min-score S: detector score threshold\n"
-    "  in [0, 1] (default 0.3).\n"
+    "  in [0, 1] (default 0.3). --floor: keypoints on the floor plane that the detector's\n"
+    "  preprocessing finds stay static (HtxSourceParams::report_floor; off by default, see\n"
+    "  docs/dynamic.md: better precision on synthetic scenes, fewer person keypoints removed on\n"
+    "  recorded ones).\n"
     "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
     "(blue).\n"
     "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
@@ -82,6 +86,7 @@ struct Args {
   std::filesystem::path weights;
   int detect_every = 1;
   float min_score = -1.0F;  // < 0 = the HtxSourceParams default
+  bool floor = false;
   std::size_t max_frames = 0;
   std::filesystem::path stats;
   std::filesystem::path viz;
@@ -146,6 +151,8 @@ Args parse(int argc, char** argv) {
         usage_error("--min-score expects a number in [0, 1] (got '" + v + "')");
       }
       a.min_score = x;
+    } else if (s == "--floor") {
+      a.floor = true;
     } else if (s == "--max-frames") {
       a.max_frames = static_cast<std::size_t>(parse_int(s, value(), 0));
     } else if (s == "--stats") {
@@ -191,8 +198,8 @@ Args parse(int argc, char** argv) {
   a.dataset = pos[0];
   const bool uses_htx =
       a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
-  if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F)) {
-    usage_error("--weights, --detect-every and --min-score need --dynamic htx or htx+...");
+  if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor)) {
+    usage_error("--weights, --detect-every, --min-score and --floor need --dynamic htx or htx+...");
   }
   return a;
 }
@@ -279,6 +286,7 @@ int run(const Args& a) {
   sopt.weights = a.weights;
   sopt.htx.detect_every = a.detect_every;
   if (a.min_score >= 0.0F) sopt.htx.min_score = a.min_score;
+  sopt.htx.report_floor = a.floor;
   std::shared_ptr<ds3d::slam::DynamicObjectSource> source;
   try {
     source = ds3d::slam::make_dynamic_source(a.dynamic, sopt);

@@ -9,8 +9,9 @@
 // then prints its figures without checking them (docs/dynamic.md: the HTx source on the
 // synthetic scenarios). The other tests always run the geometric source. Measurement knobs for
 // that mode (docs/dynamic.md, session 7): DS3D_GEOM_TEST_HTX_UNCERTAINTY=M sets
-// HtxSourceParams::box_uncertainty (metres, or inf), DS3D_GEOM_TEST_NO_PLANE=1 drops the
-// source's support plane before the masker.
+// HtxSourceParams::box_uncertainty (metres, or inf), DS3D_GEOM_TEST_FLOOR=1 sets
+// HtxSourceParams::report_floor (off by default), DS3D_GEOM_TEST_NO_PLANE=1 drops any support
+// plane of the source before the masker.
 #include "ds3d/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
@@ -78,6 +79,7 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
     if (const char* u = std::getenv("DS3D_GEOM_TEST_HTX_UNCERTAINTY"); u != nullptr) {
       opt.htx.box_uncertainty = std::stof(u);
     }
+    opt.htx.report_floor = std::getenv("DS3D_GEOM_TEST_FLOOR") != nullptr;
     other = ds3d::slam::make_dynamic_source(other_spec, opt);
   }
   const bool drop_plane = std::getenv("DS3D_GEOM_TEST_NO_PLANE") != nullptr;

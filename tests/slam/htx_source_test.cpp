@@ -176,7 +176,9 @@ TEST(HtxSource, KnownBoxReachesTheFilterAndDropsTheKeypointsInside) {
     given = {b, other};
     return given;
   };
-  HtxSource src(fake, {"person", "chair"});
+  ds3d::slam::HtxSourceParams with_floor;
+  with_floor.report_floor = true;
+  HtxSource src(fake, {"person", "chair"}, with_floor);
   source = &src;
   const FrameInput in = to_input(frame);
   const DynamicObjects obj = src.detect(in, camera);
@@ -541,13 +543,14 @@ TEST(Ds3dSlamCli, HtxOptions) {
   EXPECT_EQ(run_cli(ds + " --weights x.safetensors").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic htx --detect-every 0").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic htx --min-score 2").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic geometric --floor").code, 2);  // --floor needs htx
   r = run_cli(ds + " --dynamic htx+nothing");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("nothing"), std::string::npos) << r.output;
   // a run with the fixture weights, every 2nd frame, and the composite
   for (const std::string spec : {"htx", "htx+geometric"}) {
     r = run_cli(ds + " --dynamic " + spec + " --weights '" + fixture_weights().string() +
-                "' --detect-every 2 --min-score 0 --quiet --no-threads --out '" +
+                "' --detect-every 2 --min-score 0 --floor --quiet --no-threads --out '" +
                 (dir / "traj.txt").string() + "' --stats '" + (dir / "stats.json").string() + "'");
     EXPECT_EQ(r.code, 0) << spec << ": " << r.output;
     const auto stats = ds3d::test::read_json(dir / "stats.json");

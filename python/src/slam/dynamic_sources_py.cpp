@@ -333,7 +333,7 @@ void bind_dynamic_sources(py::module_& m) {
       },
       py::arg("spec"), py::arg("weights") = "", py::arg("detect_every") = 1,
       py::arg("min_score") = py::none(), py::arg("box_uncertainty") = py::none(),
-      py::arg("report_floor") = true,
+      py::arg("report_floor") = false,
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric') or 'A&B' (A's boxes only where B sees\n"
       "motion, e.g. 'htx&geometric'); weights = htx weights file ('' = the default model), "
