@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <array>
-#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -316,18 +315,16 @@ struct SlamFrontend::Impl {
     if (total <= 1) return;
     const std::size_t n = std::min(total, kDescriptorWindow);
     const std::size_t first = total - n;
-    std::array<std::array<std::uint64_t, 4>, kDescriptorWindow> words{};
+    std::array<const std::uint8_t*, kDescriptorWindow> desc{};
     for (std::size_t i = 0; i < n; ++i) {
       const auto& [kf, idx] = p.obs[first + i];
-      std::memcpy(words[i].data(), keyframes[static_cast<std::size_t>(kf)].data.desc.ptr(idx), 32);
+      desc[i] = keyframes[static_cast<std::size_t>(kf)].data.desc.ptr<std::uint8_t>(idx);
     }
     std::array<std::array<int, kDescriptorWindow>, kDescriptorWindow> dist{};
     for (std::size_t i = 0; i < n; ++i) {
       for (std::size_t j = i + 1; j < n; ++j) {
-        int d = 0;
-        for (std::size_t w = 0; w < 4; ++w) d += std::popcount(words[i][w] ^ words[j][w]);
-        dist[i][j] = d;
-        dist[j][i] = d;
+        dist[i][j] = descriptor_distance(desc[i], desc[j]);
+        dist[j][i] = dist[i][j];
       }
     }
     std::size_t best = 0;
@@ -343,8 +340,7 @@ struct SlamFrontend::Impl {
         best = i;
       }
     }
-    const auto& [kf, idx] = p.obs[first + best];
-    p.desc = row_descriptor(keyframes[static_cast<std::size_t>(kf)].data.desc, idx);
+    std::memcpy(p.desc.data(), desc[best], p.desc.size());
   }
 
   FrameData make_frame_data(const PreparedFrame& pf) const {
