@@ -35,8 +35,8 @@ BENCHMARK(BM_VoxelGrid)
     ->UseRealTime();
 
 // The per-frame use: one VoxelGridWorkspace kept across calls (no scratch allocation).
-void BM_VoxelGridWorkspace(benchmark::State& state) {
-  const ds3d::Points3f& p = ds3d::bench::room_cloud(state.range(0));
+// Times voxel_grid on `p` with one reused workspace; leaf [mm] = state.range(1).
+void run_with_workspace(benchmark::State& state, const ds3d::Points3f& p) {
   const double leaf = static_cast<double>(state.range(1)) / 1000.0;
   ds3d::VoxelGridWorkspace ws;
   std::size_t voxels = 0;
@@ -47,6 +47,10 @@ void BM_VoxelGridWorkspace(benchmark::State& state) {
   }
   state.counters["voxels"] = static_cast<double>(voxels);
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * p.rows());
+}
+
+void BM_VoxelGridWorkspace(benchmark::State& state) {
+  run_with_workspace(state, ds3d::bench::room_cloud(state.range(0)));
 }
 // Args: points, leaf [mm]; one thread.
 BENCHMARK(BM_VoxelGridWorkspace)
@@ -73,17 +77,7 @@ const ds3d::Points3f& shuffled_room_cloud(std::int64_t points) {
 }
 
 void BM_VoxelGridShuffled(benchmark::State& state) {
-  const ds3d::Points3f& p = shuffled_room_cloud(state.range(0));
-  const double leaf = static_cast<double>(state.range(1)) / 1000.0;
-  ds3d::VoxelGridWorkspace ws;
-  std::size_t voxels = 0;
-  for (auto _ : state) {
-    const auto r = ds3d::voxel_grid(p, {.leaf_size = leaf}, ws);
-    voxels = r.counts.size();
-    benchmark::DoNotOptimize(r.centroids.data());
-  }
-  state.counters["voxels"] = static_cast<double>(voxels);
-  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * p.rows());
+  run_with_workspace(state, shuffled_room_cloud(state.range(0)));
 }
 // Args: points, leaf [mm]; one thread, reused workspace.
 BENCHMARK(BM_VoxelGridShuffled)
