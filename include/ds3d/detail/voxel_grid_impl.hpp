@@ -600,17 +600,26 @@ template <PointCloud C>
     std::memcpy(&key, key_bytes + 4 * k, 4);
     return key;
   };
+  // First pass: pairs (key << 32 | index) placed by the key digit under `mask`; later passes:
+  // pairs moved by the digit `shift` bits above the key's lowest bit.
+  auto scatter_keys = [&](std::uint64_t* dst, std::uint32_t* h, std::uint32_t mask) {
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::uint32_t key = key_at(k);
+      dst[h[key & mask]++] = (std::uint64_t{key} << 32U) | k;
+    }
+  };
+  auto scatter_pairs = [n](const std::uint64_t* src, std::uint64_t* dst, std::uint32_t* h,
+                           unsigned shift, std::uint32_t mask) {
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::uint64_t w = src[k];
+      dst[h[(w >> (32U + shift)) & mask]++] = w;
+    }
+  };
   exclusive_prefix(h_high, n_high);
   if (2 * near >= n) {  // sensor order: two passes, (y, z) then x
     exclusive_prefix(h_low, n_low);
-    for (std::size_t k = 0; k < n; ++k) {
-      const std::uint32_t key = key_at(k);
-      t[h_low[key & low_mask]++] = (std::uint64_t{key} << 32U) | k;
-    }
-    for (std::size_t k = 0; k < n; ++k) {
-      const std::uint64_t w = t[k];
-      a[h_high[(w >> (32U + low)) & high_mask]++] = w;
-    }
+    scatter_keys(t, h_low, low_mask);
+    scatter_pairs(t, a, h_high, low, high_mask);
     return a;
   }
   // Arbitrary order: three passes; the histograms of the two (y, z) digits are the row and column
@@ -628,18 +637,9 @@ template <PointCloud C>
   exclusive_prefix(h_b, n_b);
   const auto mask_a = static_cast<std::uint32_t>(n_a - 1);
   const auto mask_b = static_cast<std::uint32_t>(n_b - 1);
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::uint32_t key = key_at(k);
-    t[h_a[key & mask_a]++] = (std::uint64_t{key} << 32U) | k;
-  }
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::uint64_t w = t[k];
-    a[h_b[(w >> (32U + wa)) & mask_b]++] = w;
-  }
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::uint64_t w = a[k];
-    t[h_high[(w >> (32U + low)) & high_mask]++] = w;
-  }
+  scatter_keys(t, h_a, mask_a);
+  scatter_pairs(t, a, h_b, wa, mask_b);
+  scatter_pairs(a, t, h_high, low, high_mask);
   return t;
 }
 
