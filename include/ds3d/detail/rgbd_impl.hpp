@@ -158,26 +158,31 @@ inline DepthToPointsResult depth_to_points(const float* depth, int width, int he
   return detail::depth_to_points_impl(depth, width, height, row_stride, camera, params);
 }
 
-inline DepthToPointsResult depth_to_points(
-    const Eigen::Ref<const DepthImageU16, 0, Eigen::OuterStride<>>& depth,
-    const PinholeCamera& camera, const DepthToPointsParams& params) {
+namespace detail {
+
+/// The Eigen-image overloads: checks the size fits the pointer API's int and forwards.
+template <typename Image>
+DepthToPointsResult depth_to_points_image(const Image& depth, const PinholeCamera& camera,
+                                          const DepthToPointsParams& params) {
   DS3D_CHECK(depth.rows() <= std::numeric_limits<int>::max() &&
                  depth.cols() <= std::numeric_limits<int>::max(),
              "ds3d::depth_to_points: image too large");
-  return detail::depth_to_points_impl(depth.data(), static_cast<int>(depth.cols()),
-                                      static_cast<int>(depth.rows()), depth.outerStride(), camera,
-                                      params);
+  return depth_to_points_impl(depth.data(), static_cast<int>(depth.cols()),
+                              static_cast<int>(depth.rows()), depth.outerStride(), camera, params);
+}
+
+}  // namespace detail
+
+inline DepthToPointsResult depth_to_points(
+    const Eigen::Ref<const DepthImageU16, 0, Eigen::OuterStride<>>& depth,
+    const PinholeCamera& camera, const DepthToPointsParams& params) {
+  return detail::depth_to_points_image(depth, camera, params);
 }
 
 inline DepthToPointsResult depth_to_points(
     const Eigen::Ref<const DepthImageF, 0, Eigen::OuterStride<>>& depth,
     const PinholeCamera& camera, const DepthToPointsParams& params) {
-  DS3D_CHECK(depth.rows() <= std::numeric_limits<int>::max() &&
-                 depth.cols() <= std::numeric_limits<int>::max(),
-             "ds3d::depth_to_points: image too large");
-  return detail::depth_to_points_impl(depth.data(), static_cast<int>(depth.cols()),
-                                      static_cast<int>(depth.rows()), depth.outerStride(), camera,
-                                      params);
+  return detail::depth_to_points_image(depth, camera, params);
 }
 
 }  // namespace ds3d
