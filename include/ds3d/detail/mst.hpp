@@ -29,11 +29,22 @@
 
 namespace ds3d::detail {
 
-// Which Prim step prim_dense runs. kAuto picks the widest one the CPU runs (AVX-512F, AVX2,
-// SSE2 for D = 3; generic otherwise); the others exist so tests can check that every step gives
-// bitwise the same tree. A forced step that the build or the CPU cannot run (see
+// Which Prim step prim_dense runs. kAuto picks the widest streaming one the CPU runs (AVX-512F,
+// AVX2, SSE2 for D = 3; generic otherwise); the others exist so tests can check that every step
+// gives bitwise the same tree. The kBlocked* steps (PrimBlocks3, an experiment of session 8) are
+// exact but slower than the streaming steps at 500–5,000 points (docs/hdbscan.md), so kAuto
+// never picks them. A forced step that the build or the CPU cannot run (see
 // prim_step_available) falls back to kAuto's choice.
-enum class PrimStep : std::uint8_t { kAuto, kGeneric, kSse2, kAvx2, kAvx512 };
+enum class PrimStep : std::uint8_t {
+  kAuto,
+  kGeneric,
+  kSse2,
+  kAvx2,
+  kAvx512,
+  kBlocked,        // PrimBlocks3 (D = 3), scalar
+  kBlockedAvx2,    // PrimBlocks3, AVX2 kernels
+  kBlockedAvx512,  // PrimBlocks3, AVX-512F kernels
+};
 
 // How BoruvkaKdTree finds the core distances (D = 3, k + 1 <= 16): several queries per tree
 // walk, one per SIMD lane (kAvx2: 4, kAvx512: 8), or one walk per query (kPerQuery, also used for
@@ -347,6 +358,540 @@ inline bool cpu_has_avx2() {
 }
 #endif
 
+#if defined(DS3D_HDBSCAN_AVX2) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+// Blocked Prim for D = 3 (session 8): the same tree as prim_dense's streaming steps, with most
+// key updates skipped. The not-yet-connected points are laid out in blocks of kPrimPad = 8 slots
+// in KD order (median splits on the widest axis, at multiples of 8 points), so a block is
+// spatially compact. Each block keeps a summary:
+//   * its bounding box over the live slots;
+//   * open2: the largest key² among its slots whose key² exceeds their own κ² (a slot with
+//     key² ≤ κ² is *settled*: every candidate max{κ_a², κ_b², d²} ≥ κ_b², so its key never drops;
+//     −∞ when no slot is open);
+//   * min2 / minid: its smallest key² and the lowest point id holding it.
+// A step from the new tree point c updates a block only when max{κ_c², boxdist²(c, block)} <
+// open2. The bound is exact, without any ε: every rounding step of the box distance (subtract,
+// max with 0, square, sum in the same order) is monotone, so boxdist² ≤ the computed d² of every
+// slot in the box, and a skipped block holds no slot whose key would have been replaced (keys
+// only drop to strictly smaller values). Updated slots compute max{κ_a², κ_b², d²} with the
+// streaming steps' expression, so every key and source is bitwise theirs. The step's winner is the
+// smallest (key², point id) pair over the block summaries, i.e. the first point in index order
+// with the smallest key, as in the reference: slot order plays no role. Settled slots need no
+// heap: they are simply never open. Blocks emptied by retirement are compacted away once a
+// quarter of the blocks is empty. O(n² D) worst case, O(n D) memory; the blocks only prune.
+class PrimBlocks3 {
+ public:
+  static constexpr std::size_t kLanes = kPrimPad;
+
+  // Lays out points 1..n−1 of `data` (n × 3, row-major, n ≥ 2) with core distances `core`;
+  // point 0 is the first tree point. With prune = false every block is updated in every step
+  // (the tests' reference for the pruning).
+  PrimBlocks3(const double* data, std::size_t n, const std::vector<double>& core, bool prune = true)
+      : prune_(prune) {
+    std::vector<std::uint32_t> order(n - 1);
+    std::iota(order.begin(), order.end(), 1U);
+    spatial_order(data, order, 0, order.size());
+    live_blocks_ = (order.size() + kLanes - 1) / kLanes;
+    allocate(live_blocks_);
+    const double inf = std::numeric_limits<double>::infinity();
+    pos_.assign(n, 0U);
+    for (std::size_t t = 0; t < order.size(); ++t) {
+      const std::uint32_t p = order[t];
+      x_[t] = data[std::size_t{p} * 3];
+      y_[t] = data[std::size_t{p} * 3 + 1];
+      z_[t] = data[std::size_t{p} * 3 + 2];
+      core2_[t] = core[p] * core[p];
+      key2_[t] = inf;
+      from_[t] = 0.0;
+      id_[t] = static_cast<double>(p);
+      pos_[p] = static_cast<std::uint32_t>(t);
+    }
+    for (std::size_t b = 0; b < nb_; ++b) {
+      refresh_box(b);
+      summarize(b);
+    }
+  }
+
+  // Slots in use (a multiple of kLanes; dead slots have id +∞).
+  [[nodiscard]] std::size_t slots() const { return nb_ * kLanes; }
+  [[nodiscard]] double key2(std::size_t s) const { return key2_[s]; }
+  [[nodiscard]] double from(std::size_t s) const { return from_[s]; }
+  [[nodiscard]] double id(std::size_t s) const { return id_[s]; }
+
+  // Updates the keys with the new tree point (coords c, squared core cc2, id cur) using the
+  // kernel of `step` (kBlocked, kBlockedAvx2 or kBlockedAvx512; the caller checks that it can
+  // run) and returns the slot of the smallest (key², id), or slots() when no point is left.
+  std::size_t step(PrimStep step, const double* c, double cc2, std::uint32_t cur) {
+    const auto vcur = static_cast<double>(cur);
+#if defined(DS3D_HDBSCAN_AVX2)
+    if (step == PrimStep::kBlockedAvx512) {
+      update_avx512(c, cc2, vcur);
+      return winner_avx512();
+    }
+    if (step == PrimStep::kBlockedAvx2) {
+      update_avx2(c, cc2, vcur);
+      return winner_avx2();
+    }
+#endif
+    (void)step;
+    for (std::size_t b = 0; b < nb_; ++b) {
+      if (prune_ && !(std::max(box_dist2(b, c), cc2) < open2_[b])) continue;
+      update_block(b, c, cc2, vcur);
+    }
+    return winner();
+  }
+
+  // Removes the point in slot s (just connected to the tree).
+  void retire(std::size_t s) {
+    const double inf = std::numeric_limits<double>::infinity();
+    key2_[s] = inf;
+    core2_[s] = inf;
+    id_[s] = inf;
+    const std::size_t b = s / kLanes;
+    summarize(b);  // the box keeps the retired slot: still a valid bound
+    if (minid_[b] == inf && --live_blocks_ * 4 < nb_ * 3 && nb_ > 8) compact();
+  }
+
+ private:
+  // KD order: median splits of the widest axis at a multiple of kLanes points, so that every
+  // block but the last is full and lies in one cell.
+  static void spatial_order(const double* data, std::vector<std::uint32_t>& o, std::size_t b,
+                            std::size_t e) {
+    if (e - b <= kLanes) return;
+    double lo[3] = {data[std::size_t{o[b]} * 3], data[std::size_t{o[b]} * 3 + 1],
+                    data[std::size_t{o[b]} * 3 + 2]};
+    double hi[3] = {lo[0], lo[1], lo[2]};
+    extend_box3(data, o.data(), static_cast<std::uint32_t>(b), static_cast<std::uint32_t>(e), lo,
+                hi);
+    std::size_t a = 0;
+    for (std::size_t j = 1; j < 3; ++j) {
+      if (hi[j] - lo[j] > hi[a] - lo[a]) a = j;
+    }
+    if (!(hi[a] > lo[a])) return;  // all points equal: any order
+    const std::size_t blocks = (e - b + kLanes - 1) / kLanes;
+    const std::size_t mid = b + (blocks + 1) / 2 * kLanes;
+    std::nth_element(
+        o.begin() + static_cast<std::ptrdiff_t>(b), o.begin() + static_cast<std::ptrdiff_t>(mid),
+        o.begin() + static_cast<std::ptrdiff_t>(e), [&](std::uint32_t p, std::uint32_t q) {
+          const double vp = data[std::size_t{p} * 3 + a];
+          const double vq = data[std::size_t{q} * 3 + a];
+          return vp < vq || (vp == vq && p < q);
+        });
+    spatial_order(data, o, b, mid);
+    spatial_order(data, o, mid, e);
+  }
+
+  // Blocks in use padded to a multiple of 8 (one AVX-512 vector of block summaries) with dead
+  // blocks; all arrays in one buffer, 64-byte aligned and staggered like PrimSoA's.
+  void allocate(std::size_t blocks) {
+    nb_ = (blocks + 7) / 8 * 8;
+    const std::size_t slots = nb_ * kLanes;
+    constexpr std::size_t kPage = 4096 / sizeof(double);
+    constexpr std::size_t kShift = 640 / sizeof(double);
+    const auto stride_of = [&](std::size_t len) {
+      return len <= kShift ? kShift : (len - kShift + kPage - 1) / kPage * kPage + kShift;
+    };
+    const std::size_t ls = stride_of(slots);
+    const std::size_t bs = stride_of(nb_);
+    buf_.assign(7 * ls + 9 * bs + 8, 0.0);
+    double* p = buf_.data();
+    p += ((64 - reinterpret_cast<std::uintptr_t>(p) % 64) % 64) / sizeof(double);
+    double** lanes[] = {&x_, &y_, &z_, &core2_, &key2_, &from_, &id_};
+    for (double** a : lanes) {
+      *a = p;
+      p += ls;
+    }
+    double** sums[] = {&lo_[0], &lo_[1], &lo_[2], &hi_[0], &hi_[1],
+                       &hi_[2], &open2_, &min2_,  &minid_};
+    for (double** a : sums) {
+      *a = p;
+      p += bs;
+    }
+    const double inf = std::numeric_limits<double>::infinity();
+    std::fill_n(core2_, slots, inf);
+    std::fill_n(key2_, slots, inf);
+    std::fill_n(id_, slots, inf);
+    list_.assign(nb_, 0U);
+  }
+
+  // Drops the empty blocks (order-preserving) and pads again to a multiple of 8 blocks.
+  void compact() {
+    std::size_t w = 0;
+    for (std::size_t b = 0; b < nb_; ++b) {
+      if (minid_[b] == std::numeric_limits<double>::infinity()) continue;
+      if (w != b) {
+        for (std::size_t l = 0; l < kLanes; ++l) {
+          const std::size_t s = b * kLanes + l;
+          const std::size_t d = w * kLanes + l;
+          x_[d] = x_[s];
+          y_[d] = y_[s];
+          z_[d] = z_[s];
+          core2_[d] = core2_[s];
+          key2_[d] = key2_[s];
+          from_[d] = from_[s];
+          id_[d] = id_[s];
+          if (id_[s] != std::numeric_limits<double>::infinity()) {
+            pos_[static_cast<std::size_t>(id_[s])] = static_cast<std::uint32_t>(d);
+          }
+        }
+        for (std::size_t j = 0; j < 3; ++j) {
+          lo_[j][w] = lo_[j][b];
+          hi_[j][w] = hi_[j][b];
+        }
+        open2_[w] = open2_[b];
+        min2_[w] = min2_[b];
+        minid_[w] = minid_[b];
+      }
+      ++w;
+    }
+    live_blocks_ = w;
+    const std::size_t padded = (w + 7) / 8 * 8;
+    const double inf = std::numeric_limits<double>::infinity();
+    for (std::size_t b = w; b < padded; ++b) {
+      for (std::size_t l = 0; l < kLanes; ++l) {
+        const std::size_t s = b * kLanes + l;
+        x_[s] = y_[s] = z_[s] = 0.0;
+        core2_[s] = key2_[s] = id_[s] = inf;
+        from_[s] = 0.0;
+      }
+      refresh_box(b);
+      summarize(b);
+    }
+    nb_ = padded;
+  }
+
+  // Box of the live slots of block b (lo = +∞, hi = −∞ when none: box distance +∞).
+  void refresh_box(std::size_t b) {
+    const double inf = std::numeric_limits<double>::infinity();
+    double lo[3] = {inf, inf, inf};
+    double hi[3] = {-inf, -inf, -inf};
+    for (std::size_t s = b * kLanes; s < (b + 1) * kLanes; ++s) {
+      if (id_[s] == inf) continue;
+      lo[0] = std::min(lo[0], x_[s]);
+      hi[0] = std::max(hi[0], x_[s]);
+      lo[1] = std::min(lo[1], y_[s]);
+      hi[1] = std::max(hi[1], y_[s]);
+      lo[2] = std::min(lo[2], z_[s]);
+      hi[2] = std::max(hi[2], z_[s]);
+    }
+    for (std::size_t j = 0; j < 3; ++j) {
+      lo_[j][b] = lo[j];
+      hi_[j][b] = hi[j];
+    }
+  }
+
+  // open2, min2 and minid of block b from its slots.
+  void summarize(std::size_t b) {
+    const double inf = std::numeric_limits<double>::infinity();
+    double open = -inf;
+    double mn = inf;
+    for (std::size_t s = b * kLanes; s < (b + 1) * kLanes; ++s) {  // max / min, no branches
+      const double k = key2_[s];
+      open = std::max(open, k > core2_[s] ? k : -inf);
+      mn = std::min(mn, k);
+    }
+    double mid = inf;
+    for (std::size_t s = b * kLanes; s < (b + 1) * kLanes; ++s) {
+      mid = std::min(mid, key2_[s] == mn ? id_[s] : inf);
+    }
+    open2_[b] = open;
+    min2_[b] = mn;
+    minid_[b] = mid;
+  }
+
+  // Squared distance from c to block b's box: a lower bound of every computed d² in it.
+  [[nodiscard]] double box_dist2(std::size_t b, const double* c) const {
+    const double g0 = gap(lo_[0][b] - c[0], c[0] - hi_[0][b]);
+    const double g1 = gap(lo_[1][b] - c[1], c[1] - hi_[1][b]);
+    const double g2 = gap(lo_[2][b] - c[2], c[2] - hi_[2][b]);
+    double s = no_contract(g0 * g0);
+    s += no_contract(g1 * g1);
+    return s + no_contract(g2 * g2);
+  }
+
+  // prim_step_generic's update on the slots of block b, then its summary if a key dropped.
+  void update_block(std::size_t b, const double* c, double cc2, double cur) {
+    bool changed = false;
+    for (std::size_t s = b * kLanes; s < (b + 1) * kLanes; ++s) {
+      double d2 = 0.0;
+      const double dx = x_[s] - c[0];
+      d2 += no_contract(dx * dx);
+      const double dy = y_[s] - c[1];
+      d2 += no_contract(dy * dy);
+      const double dz = z_[s] - c[2];
+      d2 += no_contract(dz * dz);
+      const double lo = cc2 > core2_[s] ? cc2 : core2_[s];
+      const double m2 = d2 > lo ? d2 : lo;
+      if (m2 < key2_[s]) {
+        key2_[s] = m2;
+        from_[s] = cur;
+        changed = true;
+      }
+    }
+    if (changed) summarize(b);
+  }
+
+  // Slot of the smallest (min2, minid) over the blocks.
+  [[nodiscard]] std::size_t winner() const {
+    double bk = std::numeric_limits<double>::infinity();
+    double bi = bk;
+    for (std::size_t b = 0; b < nb_; ++b) {
+      if (min2_[b] < bk || (min2_[b] == bk && minid_[b] < bi)) {
+        bk = min2_[b];
+        bi = minid_[b];
+      }
+    }
+    return slot_of(bi);
+  }
+
+  [[nodiscard]] std::size_t slot_of(double id) const {
+    return id == std::numeric_limits<double>::infinity() ? slots()
+                                                         : pos_[static_cast<std::size_t>(id)];
+  }
+
+#if defined(DS3D_HDBSCAN_AVX2)
+  // The block tests 4 blocks per vector; updates as prim_step_3d_avx2, one block = 2 vectors.
+  // Indices of the blocks that max{κ_c², boxdist²} does not rule out, into list_ (branch-free:
+  // every index is written, the count advances only for the kept ones); returns their count.
+  __attribute__((target("avx2"))) std::size_t open_blocks_avx2(__m256d cx, __m256d cy, __m256d cz,
+                                                               __m256d vcc) {
+    std::size_t cnt = 0;
+    std::uint32_t* list = list_.data();
+    for (std::size_t b = 0; b < nb_; b += 4) {
+      unsigned m = 0xFU;
+      if (prune_) {
+        __m256d bd2 = _mm256_add_pd(gap2_avx2(lo_[0] + b, hi_[0] + b, cx),
+                                    gap2_avx2(lo_[1] + b, hi_[1] + b, cy));
+        bd2 = _mm256_add_pd(bd2, gap2_avx2(lo_[2] + b, hi_[2] + b, cz));
+        const __m256d lb = _mm256_max_pd(bd2, vcc);
+        m = static_cast<unsigned>(
+            _mm256_movemask_pd(_mm256_cmp_pd(lb, _mm256_load_pd(open2_ + b), _CMP_LT_OQ)));
+      }
+      for (unsigned j = 0; j < 4; ++j) {
+        list[cnt] = static_cast<std::uint32_t>(b + j);
+        cnt += (m >> j) & 1U;
+      }
+    }
+    return cnt;
+  }
+
+  // The block tests 4 blocks per vector; updates as prim_step_3d_avx2, one block = 2 vectors,
+  // then the block's summary from the registers (no branches on keys).
+  __attribute__((target("avx2"))) void update_avx2(const double* c, double cc2, double cur) {
+    const __m256d cx = _mm256_set1_pd(c[0]), cy = _mm256_set1_pd(c[1]), cz = _mm256_set1_pd(c[2]);
+    const __m256d vcc = _mm256_set1_pd(cc2), vcur = _mm256_set1_pd(cur);
+    const __m256d ninf = _mm256_set1_pd(-std::numeric_limits<double>::infinity());
+    const __m256d pinf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+    const std::size_t cnt = open_blocks_avx2(cx, cy, cz, vcc);
+    for (std::size_t q = 0; q < cnt; ++q) {
+      const std::size_t blk = list_[q];
+      __m256d nk[2], open[2];
+      for (std::size_t h = 0; h < 2; ++h) {
+        const std::size_t t = blk * kLanes + 4 * h;
+        const __m256d dx = _mm256_sub_pd(_mm256_load_pd(x_ + t), cx);
+        const __m256d dy = _mm256_sub_pd(_mm256_load_pd(y_ + t), cy);
+        const __m256d dz = _mm256_sub_pd(_mm256_load_pd(z_ + t), cz);
+        __m256d d2 = no_contract256x(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract256x(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract256x(_mm256_mul_pd(dz, dz)));
+        const __m256d core = _mm256_load_pd(core2_ + t);
+        const __m256d m2 = _mm256_max_pd(_mm256_max_pd(core, vcc), d2);
+        const __m256d k = _mm256_load_pd(key2_ + t);
+        const __m256d better = _mm256_cmp_pd(m2, k, _CMP_LT_OQ);
+        nk[h] = _mm256_blendv_pd(k, m2, better);
+        _mm256_store_pd(key2_ + t, nk[h]);
+        _mm256_store_pd(from_ + t, _mm256_blendv_pd(_mm256_load_pd(from_ + t), vcur, better));
+        open[h] = _mm256_blendv_pd(ninf, nk[h], _mm256_cmp_pd(nk[h], core, _CMP_GT_OQ));
+      }
+      const __m256d mx = _mm256_max_pd(open[0], open[1]);
+      const __m256d mn = _mm256_min_pd(nk[0], nk[1]);
+      const double mn_all = hmin_avx2(mn);
+      const __m256d vmn = _mm256_set1_pd(mn_all);
+      const __m256d id0 = _mm256_blendv_pd(pinf, _mm256_load_pd(id_ + blk * kLanes),
+                                           _mm256_cmp_pd(nk[0], vmn, _CMP_EQ_OQ));
+      const __m256d id1 = _mm256_blendv_pd(pinf, _mm256_load_pd(id_ + blk * kLanes + 4),
+                                           _mm256_cmp_pd(nk[1], vmn, _CMP_EQ_OQ));
+      open2_[blk] = hmax_avx2(mx);
+      min2_[blk] = mn_all;
+      minid_[blk] = hmin_avx2(_mm256_min_pd(id0, id1));
+    }
+  }
+
+  __attribute__((target("avx2"))) static double hmin_avx2(__m256d v) {
+    const __m128d a = _mm_min_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd(v, 1));
+    return _mm_cvtsd_f64(_mm_min_sd(a, _mm_unpackhi_pd(a, a)));
+  }
+  __attribute__((target("avx2"))) static double hmax_avx2(__m256d v) {
+    const __m128d a = _mm_max_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd(v, 1));
+    return _mm_cvtsd_f64(_mm_max_sd(a, _mm_unpackhi_pd(a, a)));
+  }
+
+  __attribute__((target("avx2"))) [[nodiscard]] std::size_t winner_avx2() const {
+    const double inf = std::numeric_limits<double>::infinity();
+    __m256d bk = _mm256_set1_pd(inf);
+    __m256d bi = bk;
+    for (std::size_t b = 0; b < nb_; b += 4) {
+      const __m256d k = _mm256_load_pd(min2_ + b);
+      const __m256d i = _mm256_load_pd(minid_ + b);
+      const __m256d lt = _mm256_or_pd(
+          _mm256_cmp_pd(k, bk, _CMP_LT_OQ),
+          _mm256_and_pd(_mm256_cmp_pd(k, bk, _CMP_EQ_OQ), _mm256_cmp_pd(i, bi, _CMP_LT_OQ)));
+      bk = _mm256_blendv_pd(bk, k, lt);
+      bi = _mm256_blendv_pd(bi, i, lt);
+    }
+    alignas(32) double kv[4], iv[4];
+    _mm256_store_pd(kv, bk);
+    _mm256_store_pd(iv, bi);
+    return slot_of(lex_min(kv, iv, 4));
+  }
+
+  // The same with 8 blocks per test vector and one AVX-512 vector per block.
+  __attribute__((target("avx512f"))) void update_avx512(const double* c, double cc2, double cur) {
+    const __m512d cx = _mm512_set1_pd(c[0]), cy = _mm512_set1_pd(c[1]), cz = _mm512_set1_pd(c[2]);
+    const __m512d vcc = _mm512_set1_pd(cc2), vcur = _mm512_set1_pd(cur);
+    const __m512d ninf = _mm512_set1_pd(-std::numeric_limits<double>::infinity());
+    const __m512d pinf = _mm512_set1_pd(std::numeric_limits<double>::infinity());
+    std::size_t cnt = 0;
+    std::uint32_t* list = list_.data();
+    for (std::size_t b = 0; b < nb_; b += 8) {
+      unsigned m = 0xFFU;
+      if (prune_) {
+        __m512d bd2 = _mm512_add_pd(gap2_avx512(lo_[0] + b, hi_[0] + b, cx),
+                                    gap2_avx512(lo_[1] + b, hi_[1] + b, cy));
+        bd2 = _mm512_add_pd(bd2, gap2_avx512(lo_[2] + b, hi_[2] + b, cz));
+        const __m512d lb = _mm512_max_pd(bd2, vcc);
+        m = _mm512_cmp_pd_mask(lb, _mm512_load_pd(open2_ + b), _CMP_LT_OQ);
+      }
+      for (unsigned j = 0; j < 8; ++j) {
+        list[cnt] = static_cast<std::uint32_t>(b + j);
+        cnt += (m >> j) & 1U;
+      }
+    }
+    for (std::size_t q = 0; q < cnt; ++q) {
+      const std::size_t blk = list[q];
+      const std::size_t t = blk * kLanes;
+      const __m512d dx = _mm512_sub_pd(_mm512_load_pd(x_ + t), cx);
+      const __m512d dy = _mm512_sub_pd(_mm512_load_pd(y_ + t), cy);
+      const __m512d dz = _mm512_sub_pd(_mm512_load_pd(z_ + t), cz);
+      __m512d d2 = no_contract_v512(_mm512_mul_pd(dx, dx));
+      d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dy, dy)));
+      d2 = _mm512_add_pd(d2, no_contract_v512(_mm512_mul_pd(dz, dz)));
+      const __m512d core = _mm512_load_pd(core2_ + t);
+      const __m512d m2 = _mm512_max_pd(_mm512_max_pd(core, vcc), d2);
+      const __m512d k = _mm512_load_pd(key2_ + t);
+      const __mmask8 better = _mm512_cmp_pd_mask(m2, k, _CMP_LT_OQ);
+      _mm512_mask_store_pd(key2_ + t, better, m2);
+      _mm512_mask_store_pd(from_ + t, better, vcur);
+      const __m512d nk = _mm512_mask_blend_pd(better, k, m2);
+      const __mmask8 open = _mm512_cmp_pd_mask(nk, core, _CMP_GT_OQ);
+      const double mn = _mm512_reduce_min_pd(nk);
+      const __mmask8 eq = _mm512_cmp_pd_mask(nk, _mm512_set1_pd(mn), _CMP_EQ_OQ);
+      open2_[blk] = _mm512_reduce_max_pd(_mm512_mask_blend_pd(open, ninf, nk));
+      min2_[blk] = mn;
+      minid_[blk] = _mm512_reduce_min_pd(_mm512_mask_blend_pd(eq, pinf, _mm512_load_pd(id_ + t)));
+    }
+  }
+
+  __attribute__((target("avx512f"))) [[nodiscard]] std::size_t winner_avx512() const {
+    const double inf = std::numeric_limits<double>::infinity();
+    __m512d bk = _mm512_set1_pd(inf);
+    __m512d bi = bk;
+    for (std::size_t b = 0; b < nb_; b += 8) {
+      const __m512d k = _mm512_load_pd(min2_ + b);
+      const __m512d i = _mm512_load_pd(minid_ + b);
+      const __mmask8 eq = _mm512_cmp_pd_mask(k, bk, _CMP_EQ_OQ);
+      const __mmask8 lt = static_cast<__mmask8>(_mm512_cmp_pd_mask(k, bk, _CMP_LT_OQ) |
+                                                _mm512_mask_cmp_pd_mask(eq, i, bi, _CMP_LT_OQ));
+      bk = _mm512_mask_blend_pd(lt, bk, k);
+      bi = _mm512_mask_blend_pd(lt, bi, i);
+    }
+    alignas(64) double kv[8], iv[8];
+    _mm512_store_pd(kv, bk);
+    _mm512_store_pd(iv, bi);
+    return slot_of(lex_min(kv, iv, 8));
+  }
+
+  __attribute__((target("avx2"))) static __m256d no_contract256x(__m256d v) {
+    asm("" : "+x"(v));
+    return v;
+  }
+
+  // Squared gaps of q to four / eight intervals [lo, hi] (max{lo − q, q − hi, 0}², no FMA).
+  __attribute__((target("avx2"))) static __m256d gap2_avx2(const double* lo, const double* hi,
+                                                           __m256d q) {
+    const __m256d g = _mm256_max_pd(
+        _mm256_max_pd(_mm256_sub_pd(_mm256_load_pd(lo), q), _mm256_sub_pd(q, _mm256_load_pd(hi))),
+        _mm256_setzero_pd());
+    return no_contract256x(_mm256_mul_pd(g, g));
+  }
+  __attribute__((target("avx512f"))) static __m512d gap2_avx512(const double* lo, const double* hi,
+                                                                __m512d q) {
+    const __m512d g = _mm512_max_pd(
+        _mm512_max_pd(_mm512_sub_pd(_mm512_load_pd(lo), q), _mm512_sub_pd(q, _mm512_load_pd(hi))),
+        _mm512_setzero_pd());
+    return no_contract_v512(_mm512_mul_pd(g, g));
+  }
+#endif
+
+  // Point id of the smallest (k[l], id[l]) pair.
+  static double lex_min(const double* k, const double* id, std::size_t lanes) {
+    double bk = k[0];
+    double bi = id[0];
+    for (std::size_t l = 1; l < lanes; ++l) {
+      if (k[l] < bk || (k[l] == bk && id[l] < bi)) {
+        bk = k[l];
+        bi = id[l];
+      }
+    }
+    return bi;
+  }
+
+  bool prune_ = true;
+  std::size_t nb_ = 0;           // blocks in use (multiple of 8)
+  std::size_t live_blocks_ = 0;  // blocks with a live slot
+  std::vector<double> buf_;      // owns every array below
+  double* x_ = nullptr;          // per slot [nb_ * kLanes]: coordinates, κ², key², source, id
+  double* y_ = nullptr;
+  double* z_ = nullptr;
+  double* core2_ = nullptr;
+  double* key2_ = nullptr;
+  double* from_ = nullptr;
+  double* id_ = nullptr;  // point id, +∞ when dead
+  double* lo_[3] = {};    // per block [nb_]: box of the live slots
+  double* hi_[3] = {};
+  double* open2_ = nullptr;          // largest key² of an open slot (−∞: none)
+  double* min2_ = nullptr;           // smallest key²
+  double* minid_ = nullptr;          // lowest id with key² == min2 (+∞: empty block)
+  std::vector<std::uint32_t> pos_;   // point id -> slot
+  std::vector<std::uint32_t> list_;  // scratch: blocks to update in this step
+};
+
+// Prim with PrimBlocks3 (D = 3); `step` is kBlocked, kBlockedAvx2 or kBlockedAvx512 and can run.
+inline std::vector<MstEdge> prim_blocked_3d(const double* data, std::size_t n,
+                                            const std::vector<double>& core, PrimStep step) {
+  std::vector<MstEdge> edges;
+  if (n < 2) return edges;
+  edges.reserve(n - 1);
+  PrimBlocks3 pb(data, n, core);
+  std::uint32_t cur = 0;
+  for (std::size_t r = 0; r + 1 < n; ++r) {
+    const std::size_t s = pb.step(step, data + std::size_t{cur} * 3, core[cur] * core[cur], cur);
+    const auto to = static_cast<std::uint32_t>(pb.id(s));
+    const auto src = static_cast<std::uint32_t>(pb.from(s));
+    pb.retire(s);
+    const double d =
+        std::sqrt(sq_dist_seq(data + std::size_t{src} * 3, data + std::size_t{to} * 3, 3));
+    edges.push_back({src, to, std::max({core[src], core[to], d})});
+    cur = to;
+  }
+  return edges;
+}
+#if defined(DS3D_HDBSCAN_AVX2) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+
 // Queries per BoruvkaKdTree core-distance walk (SIMD lanes) for dimension dim, list length kk =
 // k + 1 and mode `lanes`: 8 (AVX-512F), 4 (AVX2) or 0 (one walk per query).
 inline std::size_t knn_lane_width(std::size_t dim, std::size_t kk, KnnLanes lanes) {
@@ -381,11 +926,20 @@ inline bool prim_step_available(PrimStep step, std::size_t dim) {
       return false;
 #endif
     case PrimStep::kAvx512:
+    case PrimStep::kBlockedAvx512:
 #if defined(DS3D_HDBSCAN_AVX512)
       return dim == 3 && cpu_has_avx512();
 #else
       return false;
 #endif
+    case PrimStep::kBlockedAvx2:
+#if defined(DS3D_HDBSCAN_AVX2)
+      return dim == 3 && cpu_has_avx2();
+#else
+      return false;
+#endif
+    case PrimStep::kBlocked:
+      return dim == 3;
     default:
       return false;
   }
@@ -396,6 +950,17 @@ inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::s
                                        PrimStep step = PrimStep::kAuto) {
   std::vector<MstEdge> edges;
   if (n < 2) return edges;
+  if (dim != 3) step = PrimStep::kGeneric;
+  if (step == PrimStep::kAuto || !prim_step_available(step, dim)) {
+    step = prim_step_available(PrimStep::kAvx512, dim) ? PrimStep::kAvx512
+           : prim_step_available(PrimStep::kAvx2, dim) ? PrimStep::kAvx2
+           : prim_step_available(PrimStep::kSse2, dim) ? PrimStep::kSse2
+                                                       : PrimStep::kGeneric;
+  }
+  if (step == PrimStep::kBlocked || step == PrimStep::kBlockedAvx2 ||
+      step == PrimStep::kBlockedAvx512) {
+    return prim_blocked_3d(data, n, core, step);
+  }
   edges.reserve(n - 1);
   const double inf = std::numeric_limits<double>::infinity();
   // Slot counts are kept a multiple of kPrimPad: the slots past the points are retired dummies
@@ -412,13 +977,6 @@ inline std::vector<MstEdge> prim_dense(const double* data, std::size_t n, std::s
     s.idx[t] = static_cast<std::uint32_t>(t + 1);
     s.core2[t] = core[t + 1] * core[t + 1];
     for (std::size_t j = 0; j < dim; ++j) s.coords[j][t] = data[(t + 1) * dim + j];
-  }
-  if (dim != 3) step = PrimStep::kGeneric;
-  if (step == PrimStep::kAuto || !prim_step_available(step, dim)) {
-    step = prim_step_available(PrimStep::kAvx512, dim) ? PrimStep::kAvx512
-           : prim_step_available(PrimStep::kAvx2, dim) ? PrimStep::kAvx2
-           : prim_step_available(PrimStep::kSse2, dim) ? PrimStep::kSse2
-                                                       : PrimStep::kGeneric;
   }
   // Settled points: a key equal to the point's own squared core distance can never drop again
   // (every candidate max{κ_a², κ_b², d²} is >= κ_b²), so such a point leaves the streaming
