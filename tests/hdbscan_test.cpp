@@ -645,8 +645,7 @@ TEST(Hdbscan, PrimStepsMatchTextbookPrimBitwise) {
       const auto core = ds3d::detail::knn_core_distances(ds, k, 1);
       const auto want = textbook(x, core);
       for (const auto step : {PrimStep::kAuto, PrimStep::kGeneric, PrimStep::kSse2, PrimStep::kAvx2,
-                              PrimStep::kAvx512, PrimStep::kBlocked, PrimStep::kBlockedAvx2,
-                              PrimStep::kBlockedAvx512}) {
+                              PrimStep::kAvx512}) {
         if (step != PrimStep::kAuto && !ds3d::detail::prim_step_available(step, dim)) continue;
         const auto got = ds3d::detail::prim_dense(x.data(), n, dim, core, step);
         ASSERT_EQ(got.size(), want.size());
@@ -656,96 +655,6 @@ TEST(Hdbscan, PrimStepsMatchTextbookPrimBitwise) {
           ASSERT_EQ(got[e].to, want[e].to) << "step " << static_cast<int>(step) << " edge " << e;
           ASSERT_EQ(got[e].weight, want[e].weight)
               << "step " << static_cast<int>(step) << " edge " << e;
-        }
-      }
-    }
-  }
-}
-
-TEST(Hdbscan, BlockedPrimPruningSkipsOnlyBlocksWhoseKeysCannotDrop) {
-  // PrimBlocks3 skips a block when max{κ_c², boxdist²(c, block)} >= its largest open key². Run
-  // the pruned and the unpruned kernels in lockstep from the same tree points and compare every
-  // slot's key² and source after every step: a skipped block whose key would have dropped shows
-  // up as a difference at that very step. Then the pruned MST must equal the textbook tree's.
-  using ds3d::detail::PrimBlocks3;
-  using ds3d::detail::PrimStep;
-  std::vector<RowMatrixXd> sets;
-  std::uint64_t state = 77;
-  auto uniform = [&state]() {
-    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
-    return static_cast<double>(state >> 11) * 0x1.0p-53;
-  };
-  for (const Eigen::Index n : {2, 3, 5, 8, 9, 17, 63, 130}) {  // n not a multiple of 8
-    RowMatrixXd x(n, 3);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      for (Eigen::Index j = 0; j < 3; ++j) x(i, j) = uniform();
-    }
-    sets.push_back(x);
-  }
-  RowMatrixXd dup(300, 3);  // 5 distinct points, many duplicates: equal keys everywhere
-  for (Eigen::Index i = 0; i < dup.rows(); ++i) {
-    for (Eigen::Index j = 0; j < 3; ++j) dup(i, j) = static_cast<double>((i * 7 + j) % 5);
-  }
-  sets.push_back(dup);
-  RowMatrixXd line(257, 3);  // collinear, equally spaced: equal distances, equal keys
-  for (Eigen::Index i = 0; i < line.rows(); ++i) {
-    const auto v = static_cast<double>((i * 37) % 257);
-    line.row(i) << v, 2.0 * v, -v;
-  }
-  sets.push_back(line);
-  RowMatrixXd grid(500, 3);  // clumped integer grid
-  for (Eigen::Index i = 0; i < grid.rows(); ++i) {
-    for (Eigen::Index j = 0; j < 3; ++j) {
-      grid(i, j) = std::floor(uniform() * 6.0) + 40.0 * static_cast<double>(i % 4);
-    }
-  }
-  sets.push_back(grid);
-  for (const double scale : {1e-170, 1e-9, 1e9, 1e150}) {  // tiny (d² underflows) and huge
-    RowMatrixXd x(200, 3);
-    for (Eigen::Index i = 0; i < x.rows(); ++i) {
-      for (Eigen::Index j = 0; j < 3; ++j) x(i, j) = scale * (std::floor(uniform() * 50.0) + 1.0);
-    }
-    sets.push_back(x);
-  }
-  sets.push_back(ds3d::test::gaussian_blobs(700, 3, 5, 0.3, 11, 10.0, 1.0).x);
-  for (const auto& x : sets) {
-    const auto n = static_cast<std::size_t>(x.rows());
-    for (const std::size_t k : {std::size_t{1}, std::size_t{4}}) {
-      if (k >= n) continue;
-      const ds3d::detail::DenseRowsNd ds{x.data(), n, 3};
-      const auto core = ds3d::detail::knn_core_distances(ds, k, 1);
-      for (const auto step :
-           {PrimStep::kBlocked, PrimStep::kBlockedAvx2, PrimStep::kBlockedAvx512}) {
-        if (!ds3d::detail::prim_step_available(step, 3)) continue;
-        PrimBlocks3 pruned(x.data(), n, core, true);
-        PrimBlocks3 full(x.data(), n, core, false);
-        std::uint32_t cur = 0;
-        for (std::size_t r = 0; r + 1 < n; ++r) {
-          const double* c = x.data() + std::size_t{cur} * 3;
-          const double cc2 = core[cur] * core[cur];
-          const std::size_t a = pruned.step(step, c, cc2, cur);
-          const std::size_t b = full.step(step, c, cc2, cur);
-          ASSERT_EQ(pruned.slots(), full.slots());
-          for (std::size_t s = 0; s < full.slots(); ++s) {
-            ASSERT_EQ(pruned.key2(s), full.key2(s))
-                << "n " << n << " k " << k << " step " << static_cast<int>(step) << " round " << r
-                << " slot " << s;
-            ASSERT_EQ(pruned.from(s), full.from(s)) << "n " << n << " round " << r << " slot " << s;
-          }
-          ASSERT_EQ(a, b) << "n " << n << " round " << r;
-          ASSERT_LT(a, full.slots());
-          cur = static_cast<std::uint32_t>(full.id(a));
-          pruned.retire(a);
-          full.retire(b);
-        }
-        // Against the streaming steps (checked against textbook Prim in the test above).
-        const auto want = ds3d::detail::prim_dense(x.data(), n, 3, core, PrimStep::kGeneric);
-        const auto got = ds3d::detail::prim_dense(x.data(), n, 3, core, step);
-        ASSERT_EQ(got.size(), n - 1);
-        for (std::size_t e = 0; e < got.size(); ++e) {
-          ASSERT_EQ(got[e].from, want[e].from) << "n " << n << " edge " << e;
-          ASSERT_EQ(got[e].to, want[e].to) << "n " << n << " edge " << e;
-          ASSERT_EQ(got[e].weight, want[e].weight) << "n " << n << " edge " << e;
         }
       }
     }
