@@ -1064,7 +1064,7 @@ struct SlamFrontend::Impl {
     if (cull_kf >= 0 && cfg.cull_keyframes) cull_keyframes(cull_kf);
   }
 
-  // ---- keyframe culling (ORB-SLAM2's LocalMapping::KeyFrameCulling) --------------------------
+  // ---- keyframe culling (ORB-SLAM §VI-E, Mur-Artal et al. 2015; ORB-SLAM2's KeyFrameCulling) --
   // Close map points of keyframe `id` (depth in (0, ThDepth]) and how many of them are seen by
   // >= keyframe_redundant_observers other keyframes at the same or a finer scale (octave <= its
   // octave + 1). Like ORB-SLAM2, only points whose observation weight (depth counts twice)

@@ -145,13 +145,17 @@ struct FrontendConfig {
   bool refine_frame_poses = true;
   int refine_rounds = 2;  ///< after that refinement: rounds of (move every map point using all
                           ///< frames' matches, poses fixed; refine the frames again), >= 0
-  /// Keyframe culling (ORB-SLAM2's LocalMapping::KeyFrameCulling, Mur-Artal & Tardós 2017,
-  /// §V-E of the ORB-SLAM paper): after each local BA is applied, a covisible neighbour of the
-  /// keyframe that launched it is removed when more than `keyframe_redundancy_ratio` of its close
-  /// map points (depth <= orb.max_depth) are seen by at least `keyframe_redundant_observers`
-  /// other keyframes at the same or a finer scale (octave <= its octave + 1). Keyframe 0, the
-  /// current reference keyframe, keyframes newer than the launching one and keyframes in a
-  /// pending BA snapshot are never removed. Frames keep their poses through a re-parenting.
+  /// Keyframe culling (local keyframe culling of ORB-SLAM, Mur-Artal, Montiel & Tardós 2015,
+  /// §VI-E, as ORB-SLAM2's LocalMapping::KeyFrameCulling): after each local BA is applied, a
+  /// covisible neighbour of the keyframe that launched it is removed when more than
+  /// `keyframe_redundancy_ratio` of its close map points (depth <= orb.max_depth) are seen by at
+  /// least `keyframe_redundant_observers` other keyframes at the same or a finer scale (octave <=
+  /// its octave + 1). Keyframe 0, the current reference keyframe, keyframes newer than the
+  /// launching one and keyframes in a pending BA snapshot are never removed. Frames keep their
+  /// poses through a re-parenting. On by default: no keyframe is culled on fr1_xyz or Bonn crowd
+  /// (identical output), and a 1,500-frame synthetic sequence keeps 217 of 383 keyframes at the
+  /// same ATE (docs/slam.md).
+  /// @note Costs O(covisible keyframes × their points × observations) per local BA.
   bool cull_keyframes = true;
   double keyframe_redundancy_ratio = 0.9;  ///< see cull_keyframes (ORB-SLAM2: 0.9), in (0, 1]
   int keyframe_redundant_observers = 3;    ///< see cull_keyframes (ORB-SLAM2: 3), >= 1
