@@ -129,6 +129,7 @@ struct Keyframe {
   Eigen::Isometry3d T_cw = Eigen::Isometry3d::Identity();
   FrameData data;
   std::map<int, int> covis;  // keyframe id -> shared points
+  bool bad = false;          // removed by keyframe culling (its data is released)
   [[nodiscard]] Eigen::Vector3d center() const { return T_cw.inverse().translation(); }
 };
 
@@ -139,6 +140,7 @@ struct BaJob {
   std::vector<int> point_ids;
   std::vector<BaObservation> observations;
   std::future<std::pair<LocalBaResult, double>> result;
+  int cull_kf = -1;  // local BA of this keyframe: keyframe culling runs after it is applied
 };
 
 }  // namespace
@@ -185,6 +187,13 @@ void FrontendConfig::validate() const {
   DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");
   DS3D_CHECK(std::isfinite(keyframe_ref_ratio) && keyframe_ref_ratio > 0 && keyframe_ref_ratio <= 1,
              f, ": keyframe_ref_ratio must be in (0, 1] (got ", keyframe_ref_ratio, ")");
+  DS3D_CHECK(std::isfinite(keyframe_redundancy_ratio) && keyframe_redundancy_ratio > 0 &&
+                 keyframe_redundancy_ratio <= 1,
+             f, ": keyframe_redundancy_ratio must be in (0, 1] (got ", keyframe_redundancy_ratio,
+             ")");
+  DS3D_CHECK(keyframe_redundant_observers >= 1, f,
+             ": keyframe_redundant_observers must be >= 1 (got ", keyframe_redundant_observers,
+             ")");
 }
 
 void PipelineOptions::validate() const {
@@ -201,7 +210,9 @@ struct SlamFrontend::Impl {
   std::shared_ptr<DynamicObjectSource> source;
   std::shared_ptr<DynamicFeatureMasker> masker;
 
-  std::vector<Keyframe> keyframes;
+  std::vector<Keyframe> keyframes;  // indexed by id; culled ones stay (bad = true)
+  std::size_t live_keyframes = 0;
+  std::vector<CulledKeyframe> culled;
   std::vector<MapPoint> points;
   std::vector<int> recent_points;
 
@@ -304,12 +315,12 @@ struct SlamFrontend::Impl {
   // The observation descriptor with the least median distance to the others (ORB-SLAM2).
   // ORB-SLAM2's ComputeDistinctiveDescriptors: the observed descriptor whose median Hamming
   // distance to the others (its own zero included) is smallest; the first on ties. Only the
-  // newest kDescriptorWindow observations take part. The rule costs O(obs²) per update, and
-  // ORB-SLAM2 bounds obs by culling redundant keyframes, which ds3d does not: on a 1,500-frame
-  // sequence circling one room, points gathered hundreds of observations and this function
-  // took 8 % of the run's CPU, in bursts of > 100 ms inside the tracking thread at each keyframe
-  // (docs/slam.md, "Long sequences"). Points with at most kDescriptorWindow observations get
-  // exactly ORB-SLAM2's choice.
+  // newest kDescriptorWindow observations take part. The rule costs O(obs²) per update; without
+  // keyframe culling (FrontendConfig::cull_keyframes off), on a 1,500-frame sequence circling one
+  // room, points gathered hundreds of observations and this function took 8 % of the run's CPU,
+  // in bursts of > 100 ms inside the tracking thread at each keyframe (docs/slam.md, "Long
+  // sequences"). Points with at most kDescriptorWindow observations get exactly ORB-SLAM2's
+  // choice.
   void update_point_descriptor(MapPoint& p) {
     const std::size_t total = p.obs.size();
     if (total <= 1) return;
@@ -562,9 +573,11 @@ struct SlamFrontend::Impl {
   }
 
   bool relocalize(FrameData& f, Eigen::Isometry3d& T_cw) {
-    const int n = static_cast<int>(keyframes.size());
-    const int first = std::max(0, n - cfg.relocalisation_candidates);
-    for (int id = n - 1; id >= first; --id) {
+    int tried = 0;
+    for (int id = static_cast<int>(keyframes.size()) - 1;
+         id >= 0 && tried < cfg.relocalisation_candidates; --id) {
+      if (keyframes[static_cast<std::size_t>(id)].bad) continue;
+      ++tried;
       Eigen::Isometry3d T = keyframes[static_cast<std::size_t>(id)].T_cw;
       if (track_keyframe(keyframes[static_cast<std::size_t>(id)], f, T, 50)) {
         T_cw = T;
@@ -640,7 +653,7 @@ struct SlamFrontend::Impl {
 
   // ---- mapping -------------------------------------------------------------------------------
   bool need_keyframe(const FrameData& f, int inliers) const {
-    const int n_kf = static_cast<int>(keyframes.size());
+    const int n_kf = static_cast<int>(live_keyframes);
     const int min_obs = n_kf <= 2 ? 2 : 3;
     int ref_matches = 0;
     for (const int pid : keyframes[static_cast<std::size_t>(ref_kf)].data.points) {
@@ -678,6 +691,7 @@ struct SlamFrontend::Impl {
     kf.T_cw = T_cw;
     kf.data = f;
     keyframes.push_back(std::move(kf));
+    ++live_keyframes;
     Keyframe& K = keyframes.back();
     const Eigen::Isometry3d T_wc = T_cw.inverse();
     for (std::size_t i = 0; i < K.data.size(); ++i) {
@@ -956,6 +970,7 @@ struct SlamFrontend::Impl {
     std::vector<int> fixed_ids;
     for (const auto& [id, c] : fixed_sorted) fixed_ids.push_back(id);
     launch_ba(local, fixed_ids, pts, cfg.mapping_thread, cfg.local_ba);
+    if (ba_job) ba_job->cull_kf = kf_id;
   }
 
   // Starts a BA over `local` (optimised) and `fixed_ids` (constant) keyframes and `pts`, on the
@@ -1044,7 +1059,115 @@ struct SlamFrontend::Impl {
         p.ref_kf = p.obs.front().first;
       update_point_geometry(p);
     }
+    const int cull_kf = job.cull_kf;
     ba_job.reset();
+    if (cull_kf >= 0 && cfg.cull_keyframes) cull_keyframes(cull_kf);
+  }
+
+  // ---- keyframe culling (ORB-SLAM §VI-E, Mur-Artal et al. 2015; ORB-SLAM2's KeyFrameCulling) --
+  // Close map points of keyframe `id` (depth in (0, ThDepth]) and how many of them are seen by
+  // >= keyframe_redundant_observers other keyframes at the same or a finer scale (octave <= its
+  // octave + 1). Like ORB-SLAM2, only points whose observation weight (depth counts twice)
+  // exceeds the observer count are tested.
+  [[nodiscard]] std::pair<int, int> redundancy(int id) const {
+    const Keyframe& K = keyframes[static_cast<std::size_t>(id)];
+    const int th = cfg.keyframe_redundant_observers;
+    int close = 0;
+    int redundant = 0;
+    for (std::size_t i = 0; i < K.data.size(); ++i) {
+      const int pid = K.data.points[i];
+      if (pid < 0 || !K.data.is_close(i)) continue;
+      const MapPoint& p = points[static_cast<std::size_t>(pid)];
+      if (p.bad) continue;
+      ++close;
+      if (obs_weight(p) <= th) continue;
+      const int level = K.data.octave[i];
+      int n = 0;
+      for (const auto& [kf, idx] : p.obs) {
+        if (kf == id) continue;
+        if (keyframes[static_cast<std::size_t>(kf)].data.octave[static_cast<std::size_t>(idx)] <=
+                level + 1 &&
+            ++n >= th)
+          break;
+      }
+      redundant += n >= th ? 1 : 0;
+    }
+    return {close, redundant};
+  }
+
+  // Tests the covisible keyframes of `current` (most-sharing first, as ORB-SLAM2) and removes
+  // the redundant ones. Never keyframe 0, the tracking reference, keyframes newer than `current`
+  // (not yet mapped in ORB-SLAM2's order) or keyframes in a pending BA snapshot.
+  void cull_keyframes(int current) {
+    if (keyframes[static_cast<std::size_t>(current)].bad) return;
+    for (const int id : best_covisible(current, std::numeric_limits<int>::max())) {
+      const Keyframe& K = keyframes[static_cast<std::size_t>(id)];
+      if (id == 0 || id > current || id == ref_kf || K.bad) continue;
+      if (ba_job &&
+          std::find(ba_job->kf_ids.begin(), ba_job->kf_ids.end(), id) != ba_job->kf_ids.end())
+        continue;
+      const auto [close, redundant] = redundancy(id);
+      if (redundant > cfg.keyframe_redundancy_ratio * close) remove_keyframe(id, close, redundant);
+    }
+  }
+
+  // ORB-SLAM2's KeyFrame::SetBadFlag: the keyframe's frames (its own and those tracked against
+  // it) are re-parented to its most covisible keyframe with the relative transform of now (as
+  // ORB-SLAM2's spanning-tree parent + Tcp); its observations leave its map points (a point
+  // left with observation weight <= 2 is culled) and its covisibility edges are erased.
+  void remove_keyframe(int id, int close, int redundant) {
+    Keyframe& K = keyframes[static_cast<std::size_t>(id)];
+    int parent = -1;
+    int parent_w = 0;
+    for (const auto& [other, w] : K.covis) {
+      if (w > parent_w && !keyframes[static_cast<std::size_t>(other)].bad) {
+        parent_w = w;
+        parent = other;
+      }
+    }
+    if (parent < 0) return;
+    const Eigen::Isometry3d T_k_p =
+        K.T_cw * keyframes[static_cast<std::size_t>(parent)].T_cw.inverse();
+    for (auto& r : records) {
+      if (r.ref_kf != id) continue;
+      if (r.keyframe) {
+        // The keyframe's own frame becomes an ordinary frame: it keeps its map-point
+        // observations as matches so that finish() refines it like the others.
+        r.keyframe = false;
+        if (cfg.refine_frame_poses && r.tracked) {
+          for (std::size_t i = 0; i < K.data.size(); ++i) {
+            const int pid = K.data.points[i];
+            if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad)
+              r.matches.emplace_back(pid, observation(K.data, i));
+          }
+        }
+      }
+      r.T_c_ref = r.T_c_ref * T_k_p;
+      r.ref_kf = parent;
+    }
+    for (std::size_t i = 0; i < K.data.size(); ++i) {
+      const int pid = K.data.points[i];
+      if (pid < 0) continue;
+      K.data.points[i] = -1;
+      MapPoint& p = points[static_cast<std::size_t>(pid)];
+      if (p.bad) continue;
+      const auto it =
+          std::find_if(p.obs.begin(), p.obs.end(), [&](const auto& o) { return o.first == id; });
+      if (it != p.obs.end()) p.obs.erase(it);
+      if (p.obs.empty() || obs_weight(p) <= 2) {
+        erase_point(pid);
+      } else if (p.ref_kf == id) {
+        p.ref_kf = p.obs.front().first;
+        update_point_geometry(p);
+      }
+    }
+    for (const auto& [other, w] : K.covis)
+      keyframes[static_cast<std::size_t>(other)].covis.erase(id);
+    K.covis.clear();
+    K.bad = true;
+    K.data = FrameData{};  // bounded memory: nothing reads a culled keyframe's features
+    --live_keyframes;
+    culled.push_back({K.frame_index, K.timestamp, frame_counter, close, redundant});
   }
 
   // Re-optimises each tracked non-keyframe pose against the final map points it was matched to
@@ -1213,6 +1336,7 @@ struct SlamFrontend::Impl {
           const int id = add_keyframe(f, T_cw, in);
           f = keyframes[static_cast<std::size_t>(id)].data;
           schedule_local_ba(id);
+          if (!cfg.enable_local_ba && cfg.cull_keyframes) cull_keyframes(id);
           new_kf = true;
         }
       } else {
@@ -1344,10 +1468,12 @@ Trajectory to_trajectory(const std::vector<FramePose>& poses) {
 
 void SlamFrontend::finish() {
   impl_->apply_ba_if_due(true);
-  if (impl_->cfg.final_global_ba && impl_->keyframes.size() >= 2) {
+  if (impl_->cfg.final_global_ba && impl_->live_keyframes >= 2) {
     // Global BA over every keyframe and point, first keyframe fixed (the world frame).
     std::vector<int> local;
-    for (std::size_t i = 1; i < impl_->keyframes.size(); ++i) local.push_back(static_cast<int>(i));
+    for (std::size_t i = 1; i < impl_->keyframes.size(); ++i) {
+      if (!impl_->keyframes[i].bad) local.push_back(static_cast<int>(i));
+    }
     std::vector<int> pts;
     for (std::size_t j = 0; j < impl_->points.size(); ++j) {
       if (!impl_->points[j].bad) pts.push_back(static_cast<int>(j));
@@ -1397,8 +1523,9 @@ std::vector<FramePose> SlamFrontend::trajectory() const {
 
 std::vector<FramePose> SlamFrontend::keyframe_trajectory() const {
   std::vector<FramePose> out;
-  for (const auto& kf : impl_->keyframes)
-    out.push_back({kf.frame_index, kf.timestamp, kf.T_cw.inverse(), true});
+  for (const auto& kf : impl_->keyframes) {
+    if (!kf.bad) out.push_back({kf.frame_index, kf.timestamp, kf.T_cw.inverse(), true});
+  }
   return out;
 }
 
@@ -1427,7 +1554,10 @@ void SlamFrontend::write_map_ply(const std::filesystem::path& path) const {
 }
 
 const FrontendConfig& SlamFrontend::config() const noexcept { return impl_->cfg; }
-std::size_t SlamFrontend::num_keyframes() const noexcept { return impl_->keyframes.size(); }
+std::size_t SlamFrontend::num_keyframes() const noexcept { return impl_->live_keyframes; }
+const std::vector<CulledKeyframe>& SlamFrontend::culled_keyframes() const noexcept {
+  return impl_->culled;
+}
 std::size_t SlamFrontend::num_local_ba() const noexcept { return impl_->ba_count; }
 double SlamFrontend::local_ba_ms() const noexcept { return impl_->ba_ms; }
 double SlamFrontend::refine_ms() const noexcept { return impl_->refine_ms; }

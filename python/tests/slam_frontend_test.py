@@ -65,3 +65,40 @@ def test_refinement_options_are_exposed_and_validated():
     slam.finish()
     traj = slam.trajectory()
     assert np.allclose(traj[:, 1:4], [p[:3, 3] for p in online], atol=1e-9)
+
+
+def test_keyframe_culling_option():
+    cfg = ds3d.SlamConfig()
+    assert cfg.cull_keyframes is True
+    assert cfg.keyframe_redundancy_ratio == pytest.approx(0.9)
+    assert cfg.keyframe_redundant_observers == 3
+    cfg.keyframe_redundancy_ratio = 1.5
+    with pytest.raises(ValueError, match="keyframe_redundancy_ratio"):
+        cfg.validate()
+    cfg = ds3d.SlamConfig()
+    cfg.keyframe_redundant_observers = 0
+    with pytest.raises(ValueError, match="keyframe_redundant_observers"):
+        ds3d.Slam(cfg)
+    # A hovering camera (the first frames of a synthetic sequence played forward and back) with a
+    # keyframe whenever the mapping is idle: culling removes redundant keyframes, and every frame
+    # keeps a finite pose.
+    scene = ds3d.synth.Scene("static_room", frames=15, seed=2)
+    frames = [scene.render(i) for i in range(15)]
+    order = list(range(15)) + list(range(14, -1, -1))
+    order = order + order
+    counts = {}
+    for cull in (False, True):
+        cfg = ds3d.SlamConfig()
+        cfg.keyframe_ref_ratio = 1.0
+        cfg.cull_keyframes = cull
+        slam = ds3d.Slam(cfg)
+        for k, i in enumerate(order):
+            slam.track(frames[i]["rgb"], frames[i]["depth"], k / 30.0)
+        slam.finish()
+        traj = slam.trajectory()
+        assert traj.shape == (len(order), 8) and np.all(np.isfinite(traj))
+        assert len(slam.keyframe_trajectory()) == slam.num_keyframes
+        counts[cull] = (slam.num_keyframes, slam.num_culled_keyframes)
+    assert counts[False][1] == 0
+    assert counts[True][1] > 0
+    assert counts[True][0] < counts[False][0]

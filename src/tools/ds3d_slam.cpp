@@ -47,6 +47,7 @@ constexpr const char* kUsage =
     "[--viz OUT_DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
     "                 [--fusion] [--local-window N] [--bf BF] [--kf-ratio R]\n"
+    "                 [--cull-keyframes | --no-cull-keyframes] [--kf-redundancy R]\n"
     "                 [--no-refine] [--refine-rounds N] [--cv-threads N] [--quiet]\n"
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
     "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present.\n"
@@ -73,6 +74,10 @@ constexpr const char* kUsage =
     "--bf: virtual stereo baseline × fx for the depth residual [px·m] (default 40, ORB-SLAM2's).\n"
     "--kf-ratio: keyframe when fewer than this fraction of the reference keyframe's points are\n"
     "  tracked (default 0.75, ORB-SLAM2's RGB-D value), in (0, 1].\n"
+    "--cull-keyframes / --no-cull-keyframes: remove redundant keyframes (ORB-SLAM2's\n"
+    "  KeyFrameCulling: > R of their close points seen by >= 3 other keyframes at the same or a\n"
+    "  finer scale; default on, see docs/slam.md). --kf-redundancy R: that ratio (default 0.9),\n"
+    "  in (0, 1].\n"
     "--no-refine: keep the tracked poses (by default, after the final global BA each non-keyframe\n"
     "  pose is re-optimised against the final map). --refine-rounds N: then N rounds of (update\n"
     "  every map point from all frames' matches; re-optimise the frames) (default 2).\n"
@@ -95,9 +100,11 @@ struct Args {
   bool threads = true;
   bool local_ba = true;
   bool fusion = false;
-  int local_window = 0;  // 0 = the FrontendConfig default
-  double bf = 0;         // 0 = the FrontendConfig default
-  double kf_ratio = 0;   // 0 = the FrontendConfig default
+  int local_window = 0;      // 0 = the FrontendConfig default
+  double bf = 0;             // 0 = the FrontendConfig default
+  double kf_ratio = 0;       // 0 = the FrontendConfig default
+  int cull_keyframes = -1;   // < 0 = the FrontendConfig default, else 0/1
+  double kf_redundancy = 0;  // 0 = the FrontendConfig default
   bool refine = true;
   int refine_rounds = -1;  // < 0 = the FrontendConfig default
   int cv_threads = 1;
@@ -177,6 +184,17 @@ Args parse(int argc, char** argv) {
       a.kf_ratio = std::strtod(v.c_str(), &end);
       if (v.empty() || *end != '\0' || !(a.kf_ratio > 0 && a.kf_ratio <= 1)) {
         usage_error("--kf-ratio expects a number in (0, 1] (got '" + v + "')");
+      }
+    } else if (s == "--cull-keyframes") {
+      a.cull_keyframes = 1;
+    } else if (s == "--no-cull-keyframes") {
+      a.cull_keyframes = 0;
+    } else if (s == "--kf-redundancy") {
+      const std::string v = value();
+      char* end = nullptr;
+      a.kf_redundancy = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(a.kf_redundancy > 0 && a.kf_redundancy <= 1)) {
+        usage_error("--kf-redundancy expects a number in (0, 1] (got '" + v + "')");
       }
     } else if (s == "--refine-rounds") {
       a.refine_rounds = static_cast<int>(parse_int(s, value(), 0));
@@ -311,6 +329,8 @@ int run(const Args& a) {
   if (a.local_window > 0) cfg.local_window = a.local_window;
   if (a.bf > 0) cfg.bf = a.bf;
   if (a.kf_ratio > 0) cfg.keyframe_ref_ratio = a.kf_ratio;
+  if (a.cull_keyframes >= 0) cfg.cull_keyframes = a.cull_keyframes != 0;
+  if (a.kf_redundancy > 0) cfg.keyframe_redundancy_ratio = a.kf_redundancy;
   cfg.refine_frame_poses = a.refine;
   if (a.refine_rounds >= 0) cfg.refine_rounds = a.refine_rounds;
   cfg.mapping_thread = a.threads;
@@ -405,6 +425,7 @@ int run(const Args& a) {
        << "  \"lost_frames\": " << lost << ",\n"
        << "  \"relocalized_frames\": " << relocalized << ",\n"
        << "  \"keyframes\": " << slam.num_keyframes() << ",\n"
+       << "  \"culled_keyframes\": " << slam.culled_keyframes().size() << ",\n"
        << "  \"map_points\": " << slam.map_points().rows() << ",\n"
        << "  \"threaded\": " << (a.threads ? "true" : "false") << ",\n"
        << "  \"wall_s\": " << json_number(wall_s) << ",\n"

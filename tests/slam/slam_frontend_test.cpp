@@ -2,6 +2,7 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 #include "ds3d/slam_frontend.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <optional>
@@ -43,6 +44,8 @@ struct SlamRun {
   std::vector<ds3d::slam::TrackResult> results;
   ds3d::Trajectory trajectory;
   double ate = 0;
+  std::vector<std::size_t> keyframe_frames;  // input frame of each live keyframe
+  std::vector<ds3d::slam::CulledKeyframe> culled;
 };
 
 SlamRun run(const std::vector<ds3d::synth::SynthFrame>& frames, FrontendConfig cfg, bool threaded,
@@ -65,6 +68,9 @@ SlamRun run(const std::vector<ds3d::synth::SynthFrame>& frames, FrontendConfig c
   r.results = ds3d::slam::run_pipeline(slam, next, {}, po);
   r.trajectory = ds3d::slam::to_trajectory(slam.trajectory());
   r.ate = ds3d::evaluate_ate(ground_truth(frames), r.trajectory).rmse;
+  for (const auto& kf : slam.keyframe_trajectory()) r.keyframe_frames.push_back(kf.index);
+  EXPECT_EQ(r.keyframe_frames.size(), slam.num_keyframes());
+  r.culled = slam.culled_keyframes();
   return r;
 }
 
@@ -121,7 +127,11 @@ TEST(SlamFrontend, PoseRefinementMovesOnlyNonKeyframes) {
   for (std::size_t i = 0; i < plain.trajectory.size(); ++i) {
     const bool same =
         plain.trajectory[i].T_world_cam.matrix() == refined.trajectory[i].T_world_cam.matrix();
-    if (plain.results[i].keyframe) {
+    // A keyframe removed by keyframe culling becomes an ordinary (refined) frame.
+    const bool live_kf = std::find(refined.keyframe_frames.begin(), refined.keyframe_frames.end(),
+                                   i) != refined.keyframe_frames.end();
+    if (live_kf) {
+      EXPECT_TRUE(plain.results[i].keyframe);
       ++keyframes;
       EXPECT_TRUE(same) << "keyframe " << i << " moved";
     } else {
@@ -137,6 +147,101 @@ TEST(SlamFrontend, PoseRefinementMovesOnlyNonKeyframes) {
   EXPECT_LE(refined.ate, 0.005);
   // Refinement against a better map must not make a static scene noticeably worse.
   EXPECT_LE(refined.ate, plain.ate * 1.1 + 1e-4);
+}
+
+// Keyframe culling (ORB-SLAM2's KeyFrameCulling). A hovering camera: the first `span` frames of
+// a static_room sequence played forward and back `passes` times (re-stamped at the frame rate),
+// so later keyframes see what earlier ones saw. A keyframe ratio of 1 inserts a keyframe whenever
+// the mapping is idle, so redundant keyframes pile up.
+std::vector<ds3d::synth::SynthFrame> hovering(int span, int passes, std::uint64_t seed) {
+  const auto base = render(ds3d::synth::Scenario::kStaticRoom, span, seed);
+  const double dt = base[1].timestamp - base[0].timestamp;
+  std::vector<ds3d::synth::SynthFrame> out;
+  for (int pass = 0; pass < passes; ++pass) {
+    for (int j = 0; j < span; ++j) {
+      out.push_back(base[static_cast<std::size_t>(pass % 2 == 0 ? j : span - 1 - j)]);
+      out.back().timestamp = base[0].timestamp + dt * static_cast<double>(out.size() - 1);
+    }
+  }
+  return out;
+}
+
+FrontendConfig dense_keyframes_config() {
+  FrontendConfig c = synth_config();
+  c.keyframe_ref_ratio = 1.0;
+  return c;
+}
+
+void expect_identical(const SlamRun& a, const SlamRun& b) {
+  ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
+  for (std::size_t i = 0; i < a.trajectory.size(); ++i) {
+    EXPECT_TRUE(a.trajectory[i].T_world_cam.matrix() == b.trajectory[i].T_world_cam.matrix())
+        << "frame " << i;
+  }
+  EXPECT_EQ(a.keyframe_frames, b.keyframe_frames);
+  ASSERT_EQ(a.culled.size(), b.culled.size());
+  for (std::size_t i = 0; i < a.culled.size(); ++i) {
+    EXPECT_EQ(a.culled[i].frame_index, b.culled[i].frame_index);
+    EXPECT_EQ(a.culled[i].at_frame, b.culled[i].at_frame);
+  }
+}
+
+TEST(SlamFrontend, KeyframeCullingBoundsKeyframesAndKeepsEveryPose) {
+  const auto frames = hovering(20, 4, 2);
+  FrontendConfig cfg = dense_keyframes_config();
+  cfg.cull_keyframes = false;
+  const SlamRun off = run(frames, cfg, true);
+  cfg.cull_keyframes = true;
+  const SlamRun on = run(frames, cfg, true);
+  EXPECT_TRUE(off.culled.empty());
+  ASSERT_FALSE(on.culled.empty());
+  EXPECT_LT(on.keyframe_frames.size(), off.keyframe_frames.size());
+  // Keyframe 0 (the frame that initialised the map) is never culled.
+  ASSERT_FALSE(on.keyframe_frames.empty());
+  EXPECT_EQ(on.keyframe_frames.front(), on.results.front().index);
+  std::size_t created = 0;
+  for (const auto& r : on.results) created += r.keyframe ? 1 : 0;
+  EXPECT_EQ(created, on.keyframe_frames.size() + on.culled.size());
+  for (const auto& c : on.culled) {
+    EXPECT_NE(c.frame_index, on.keyframe_frames.front());
+    EXPECT_TRUE(on.results[c.frame_index].keyframe);
+    EXPECT_GT(c.at_frame, c.frame_index);
+    EXPECT_GT(c.close_points, 0);
+    EXPECT_GT(c.redundant_points, 0.9 * c.close_points);  // the 90 % rule
+  }
+  ASSERT_EQ(on.trajectory.size(), frames.size());
+  for (const auto& p : on.trajectory) EXPECT_TRUE(p.T_world_cam.matrix().allFinite());
+  EXPECT_LE(on.ate, 0.005);
+  EXPECT_LE(on.ate, off.ate * 1.5 + 5e-4);
+  // Determinism: the same keyframes are culled, and the same poses come out, without threads.
+  cfg.mapping_thread = false;
+  const SlamRun sync = run(frames, cfg, false);
+  expect_identical(on, sync);
+}
+
+// The redundancy test decides: a ratio no keyframe can exceed (redundant > 1.0 × close) or more
+// observers than any point has cull nothing; with a laxer ratio every culled keyframe meets it.
+TEST(SlamFrontend, KeyframeCullingFollowsTheRedundancyRule) {
+  const auto frames = hovering(15, 4, 3);
+  FrontendConfig cfg = dense_keyframes_config();
+  cfg.keyframe_redundancy_ratio = 1.0;
+  EXPECT_TRUE(run(frames, cfg, false).culled.empty());
+  cfg.keyframe_redundancy_ratio = 0.9;
+  cfg.keyframe_redundant_observers = 1000;
+  EXPECT_TRUE(run(frames, cfg, false).culled.empty());
+  cfg.keyframe_redundant_observers = 3;
+  cfg.keyframe_redundancy_ratio = 0.5;
+  const SlamRun lax = run(frames, cfg, false);
+  EXPECT_FALSE(lax.culled.empty());
+  for (const auto& c : lax.culled) {
+    EXPECT_GT(c.close_points, 0);
+    EXPECT_GT(c.redundant_points, 0.5 * c.close_points);
+  }
+  cfg.keyframe_redundancy_ratio = 0;
+  EXPECT_THROW(cfg.validate(), ds3d::InvalidArgument);
+  cfg.keyframe_redundancy_ratio = 0.9;
+  cfg.keyframe_redundant_observers = 0;
+  EXPECT_THROW(cfg.validate(), ds3d::InvalidArgument);
 }
 
 TEST(SlamFrontend, ThreadedPipelineGivesIdenticalPoses) {

@@ -146,6 +146,9 @@ void bind_slam_frontend(py::module_& m) {
       .def_readwrite("keyframe_ref_ratio", &FrontendConfig::keyframe_ref_ratio)
       .def_readwrite("refine_frame_poses", &FrontendConfig::refine_frame_poses)
       .def_readwrite("refine_rounds", &FrontendConfig::refine_rounds)
+      .def_readwrite("cull_keyframes", &FrontendConfig::cull_keyframes)
+      .def_readwrite("keyframe_redundancy_ratio", &FrontendConfig::keyframe_redundancy_ratio)
+      .def_readwrite("keyframe_redundant_observers", &FrontendConfig::keyframe_redundant_observers)
       .def("validate", &FrontendConfig::validate, "Raises ValueError naming the bad field.");
 
   py::class_<PySlam>(
@@ -178,7 +181,10 @@ void bind_slam_frontend(py::module_& m) {
       .def(
           "map_points", [](PySlam& s) { return ds3d::Points3f(s.slam().map_points()); },
           "(M, 3) float32 map points [m, world].")
-      .def_property_readonly("num_keyframes", [](PySlam& s) { return s.slam().num_keyframes(); });
+      .def_property_readonly("num_keyframes", [](PySlam& s) { return s.slam().num_keyframes(); })
+      .def_property_readonly(
+          "num_culled_keyframes", [](PySlam& s) { return s.slam().culled_keyframes().size(); },
+          "Keyframes removed by keyframe culling (SlamConfig.cull_keyframes) so far.");
 
   m.def(
       "_run_slam",
