@@ -127,6 +127,16 @@ long parse_int(const std::string& flag, const std::string& v, long lo) {
   return x;
 }
 
+// A ratio in (0, 1]; anything else is a usage error naming the flag and the value.
+double parse_fraction(const std::string& flag, const std::string& v) {
+  char* end = nullptr;
+  const double x = std::strtod(v.c_str(), &end);
+  if (v.empty() || *end != '\0' || !(x > 0 && x <= 1)) {
+    usage_error(flag + " expects a number in (0, 1] (got '" + v + "')");
+  }
+  return x;
+}
+
 Args parse(int argc, char** argv) {
   Args a;
   std::vector<std::string> pos;
@@ -179,23 +189,13 @@ Args parse(int argc, char** argv) {
     } else if (s == "--bf") {
       a.bf = std::stod(value());
     } else if (s == "--kf-ratio") {
-      const std::string v = value();
-      char* end = nullptr;
-      a.kf_ratio = std::strtod(v.c_str(), &end);
-      if (v.empty() || *end != '\0' || !(a.kf_ratio > 0 && a.kf_ratio <= 1)) {
-        usage_error("--kf-ratio expects a number in (0, 1] (got '" + v + "')");
-      }
+      a.kf_ratio = parse_fraction(s, value());
     } else if (s == "--cull-keyframes") {
       a.cull_keyframes = 1;
     } else if (s == "--no-cull-keyframes") {
       a.cull_keyframes = 0;
     } else if (s == "--kf-redundancy") {
-      const std::string v = value();
-      char* end = nullptr;
-      a.kf_redundancy = std::strtod(v.c_str(), &end);
-      if (v.empty() || *end != '\0' || !(a.kf_redundancy > 0 && a.kf_redundancy <= 1)) {
-        usage_error("--kf-redundancy expects a number in (0, 1] (got '" + v + "')");
-      }
+      a.kf_redundancy = parse_fraction(s, value());
     } else if (s == "--refine-rounds") {
       a.refine_rounds = static_cast<int>(parse_int(s, value(), 0));
     } else if (s == "--no-refine") {
