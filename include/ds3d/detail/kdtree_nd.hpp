@@ -39,6 +39,16 @@ inline double no_contract(double p) {
   return p;
 }
 
+#if defined(__AVX2__)
+/// no_contract() for four packed doubles: keeps each product a separate rounding (no FMA).
+inline __m256d no_contract256(__m256d v) {
+#if defined(__FMA__) && defined(__GNUC__)
+  asm("" : "+x"(v));
+#endif
+  return v;
+}
+#endif
+
 /// Gap of a coordinate to an interval [lo, hi] from a = lo - q and b = q - hi: max{a, b, 0}. At
 /// most one of a, b is positive, so this equals `a > 0 ? a : (b > 0 ? b : 0)` (up to the sign of
 /// a zero, which squaring removes), but compiles to max instructions instead of two
@@ -482,15 +492,6 @@ class KnnTreeSmall {
     }
     return bits;
   }
-
-#if defined(__AVX2__)
-  static __m256d no_contract256(__m256d v) {
-#if defined(__FMA__) && defined(__GNUC__)
-    asm("" : "+x"(v));  // keeps the product a separate rounding (no FMA), like no_contract
-#endif
-    return v;
-  }
-#endif
 
   // Offers the points of node nd to q's ascending list bd of the kk smallest squared distances
   // (+inf while not full); worst = bd[kk - 1]. Branch-light, as these branches are unpredictable:

@@ -768,15 +768,6 @@ class BoruvkaKdTree {
     return bits;
   }
 
-#if defined(__AVX2__)
-  static __m256d no_contract256(__m256d v) {
-#if defined(__FMA__) && defined(__GNUC__)
-    asm("" : "+x"(v));  // keeps the product a separate rounding (no FMA), like no_contract
-#endif
-    return v;
-  }
-#endif
-
   // Offers the points of node nd to the ascending list bd of the kk smallest squared distances
   // from q (+inf while not full; worst = bd[kk - 1]). Each hit below worst is merged by
   // bd[i] = min(bd[i], max(bd[i-1], x)), a branch-free sorted insertion.
