@@ -9,7 +9,8 @@
 // the synthetic scenarios then print their figures without checking them (docs/dynamic.md: the
 // HTx source on the synthetic scenarios). The other tests always run the geometric source.
 // DS3D_GEOM_TEST_GATE_ALPHA, _CHI2, _HOLD and _NO_PIXELS=1 set MotionGateParams' alpha,
-// keypoint_chi2, hold_frames and pixel_evidence = false (`htx&&geometric`, session 9). Measurement
+// keypoint_chi2, hold_frames and pixel_evidence = false (`htx&&geometric`, session 9);
+// DS3D_GEOM_TEST_FROM=N counts the synthetic scenes from frame N on. Measurement
 // knobs for that mode (docs/dynamic.md, session 7): DS3D_GEOM_TEST_HTX_UNCERTAINTY=M sets
 // HtxSourceParams::box_uncertainty (metres, or inf), DS3D_GEOM_TEST_FLOOR=1 sets
 // HtxSourceParams::report_floor (off by default), DS3D_GEOM_TEST_NO_PLANE=1 drops any support
@@ -236,6 +237,9 @@ Counts run_synthetic(ds3d::synth::Scenario scenario, int frames,
   opt.num_frames = frames;
   opt.seed = 7;
   const ds3d::synth::SyntheticScene scene(opt);
+  // DS3D_GEOM_TEST_FROM=N counts from frame N (the first frames hold no two-view evidence).
+  const char* from_env = std::getenv("DS3D_GEOM_TEST_FROM");
+  const std::size_t from = from_env != nullptr ? std::stoul(from_env) : 0;
   return run_source(
       [&](std::size_t i) {
         auto r = scene.render(i);
@@ -247,7 +251,7 @@ Counts run_synthetic(ds3d::synth::Scenario scenario, int frames,
         f.truth = r.dynamic_mask;
         return f;
       },
-      scene.size(), 0, opt.camera, ds3d::synth::scenario_name(scenario), gp, other_spec);
+      scene.size(), from, opt.camera, ds3d::synth::scenario_name(scenario), gp, other_spec);
 }
 
 TEST(GeometricMotion, RejectsBadParams) {
