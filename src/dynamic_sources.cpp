@@ -378,14 +378,19 @@ double binomial_sf(std::size_t k, std::size_t n, double p) {
 
 // Whether pixel (u, v) with depth z lies in box `b` as the masker gates it: inside its solid (grown
 // by its margin and 3σ(z)) when it has one, else inside its rectangle and depth range ± 3σ(z).
+// `p` is the pixel back-projected (camera frame), computed at most once per point by the caller.
 bool in_box(const ImageBox& b, const PinholeCamera& camera, float u, float v, float z,
-            float depth_noise) {
+            float depth_noise, std::optional<Eigen::Vector3f>& p) {
   if (!b.contains(u, v) || !(z > 0.0F)) return false;
   const float sigma_z = depth_noise * z * z;
   if (b.solid) {
-    const Eigen::Vector3f p = camera.back_project(u, v, z).cast<float>();
-    const Eigen::Vector3f ray(p.x() / z, p.y() / z, 1.0F);
-    return b.solid->contains(p, ray, sigma_z);
+    // Quick reject by depth first: the grown solid reaches at most √3·(margin + 3σ(z)·|ray|)
+    // beyond the corners' depth range (|ray| < 2 inside any real field of view).
+    const float reach = std::sqrt(3.0F) * (b.solid->margin + 6.0F * sigma_z);
+    if (b.has_depth_range() && (z < b.z_min - reach || z > b.z_max + reach)) return false;
+    if (!p) p = camera.back_project(u, v, z).cast<float>();
+    const Eigen::Vector3f ray(p->x() / z, p->y() / z, 1.0F);
+    return b.solid->contains(*p, ray, sigma_z);
   }
   if (!b.has_depth_range()) return true;
   return z >= b.z_min - 3.0F * sigma_z && z <= b.z_max + 3.0F * sigma_z;
@@ -463,8 +468,9 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
     const auto count = [&](float u, float v, float z, bool hit, std::vector<std::size_t>& n,
                            std::vector<std::size_t>& k) {
       bool inside = false;
+      std::optional<Eigen::Vector3f> p;  // back-projected once (undistortion iterates)
       for (std::size_t i = 0; i < nb; ++i) {
-        if (!boxes[i] || !in_box(*boxes[i], camera, u, v, z, noise)) continue;
+        if (!boxes[i] || !in_box(*boxes[i], camera, u, v, z, noise, p)) continue;
         inside = true;
         ++n[i];
         k[i] += hit ? 1U : 0U;
@@ -478,20 +484,18 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
       count(t.u, t.v, t.z, static_cast<double>(t.chi2) > params_.keypoint_chi2, kp_n, kp_k);
     }
     if (params_.pixel_evidence) {
-      // Flagged pixels are a subset of the tested ones: count the tested ones as misses first.
+      // Flagged pixels are a subset of the tested ones (the same grid positions, in order).
+      std::vector<std::int64_t> flagged;
+      flagged.reserve(geo->last_moving_pixels().size());
+      const auto key = [&](const Eigen::Vector2f& q) {
+        return static_cast<std::int64_t>(std::lround(q.y())) * camera.width +
+               static_cast<std::int64_t>(std::lround(q.x()));
+      };
+      for (const Eigen::Vector2f& q : geo->last_moving_pixels()) flagged.push_back(key(q));
+      std::sort(flagged.begin(), flagged.end());
       for (const Eigen::Vector2f& q : geo->last_warp_tested()) {
-        count(q.x(), q.y(), depth_at(q.x(), q.y()), false, px_n, px_k);
-      }
-      for (const Eigen::Vector2f& q : geo->last_moving_pixels()) {
-        const float z = depth_at(q.x(), q.y());
-        for (std::size_t i = 0; i < nb; ++i) {
-          if (boxes[i] && in_box(*boxes[i], camera, q.x(), q.y(), z, noise)) ++px_k[i];
-        }
-        bool inside = false;
-        for (std::size_t i = 0; i < nb && !inside; ++i) {
-          inside = boxes[i] && in_box(*boxes[i], camera, q.x(), q.y(), z, noise);
-        }
-        if (!inside) ++px_k[nb];
+        const bool hit = std::binary_search(flagged.begin(), flagged.end(), key(q));
+        count(q.x(), q.y(), depth_at(q.x(), q.y()), hit, px_n, px_k);
       }
     }
     // The frame's false-alarm rate outside the boxes (pose error, sensor noise), never below the
