@@ -6,6 +6,8 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numbers>
+#include <optional>
 #include <sstream>
 #include <system_error>
 #include <utility>
@@ -327,19 +329,80 @@ DynamicObjects CompositeSource::detect(const FrameInput& frame, const PinholeCam
 
 // ---- MotionGatedSource -------------------------------------------------------------------------
 
+void MotionGateParams::validate() const {
+  DS3D_CHECK(std::isfinite(keypoint_chi2) && keypoint_chi2 > 0.0,
+             "ds3d::slam::MotionGateParams: keypoint_chi2 must be > 0 (got ", keypoint_chi2, ")");
+  DS3D_CHECK(std::isfinite(alpha) && alpha > 0.0 && alpha < 1.0,
+             "ds3d::slam::MotionGateParams: alpha must be in (0, 1) (got ", alpha, ")");
+  DS3D_CHECK(hold_frames >= 0, "ds3d::slam::MotionGateParams: hold_frames must be >= 0 (got ",
+             hold_frames, ")");
+  DS3D_CHECK(std::isfinite(max_speed) && max_speed >= 0.0,
+             "ds3d::slam::MotionGateParams: max_speed must be >= 0 (got ", max_speed, ")");
+}
+
 MotionGatedSource::MotionGatedSource(std::shared_ptr<DynamicObjectSource> semantic,
-                                     std::shared_ptr<DynamicObjectSource> motion)
-    : semantic_(std::move(semantic)), motion_(std::move(motion)) {
+                                     std::shared_ptr<DynamicObjectSource> motion,
+                                     MotionGateParams params)
+    : semantic_(std::move(semantic)), motion_(std::move(motion)), params_(params) {
   DS3D_CHECK(semantic_ != nullptr && motion_ != nullptr,
              "ds3d::slam::MotionGatedSource: both sources must be non-null (got semantic ",
              semantic_ ? "set" : "null", ", motion ", motion_ ? "set" : "null", ")");
+  params_.validate();
 }
 
-std::string MotionGatedSource::name() const { return semantic_->name() + "&" + motion_->name(); }
+std::string MotionGatedSource::name() const {
+  return semantic_->name() + (params_.evidence ? "&&" : "&") + motion_->name();
+}
+
+namespace {
+
+// P(X >= k) for X ~ Binomial(n, p), summed in log space from k up until the terms vanish.
+double binomial_sf(std::size_t k, std::size_t n, double p) {
+  if (k == 0) return 1.0;
+  if (k > n) return 0.0;
+  if (p <= 0.0) return 0.0;
+  if (p >= 1.0) return 1.0;
+  const double dn = static_cast<double>(n);
+  const double lp = std::log(p);
+  const double lq = std::log1p(-p);
+  double sum = 0.0;
+  for (std::size_t i = k; i <= n; ++i) {
+    const double di = static_cast<double>(i);
+    const double term = std::exp(std::lgamma(dn + 1.0) - std::lgamma(di + 1.0) -
+                                 std::lgamma(dn - di + 1.0) + di * lp + (dn - di) * lq);
+    sum += term;
+    if (di > dn * p && term < 1e-17 * sum) break;  // past the mode, the rest is negligible
+  }
+  return std::min(1.0, sum);
+}
+
+// Whether pixel (u, v) with depth z lies in box `b` as the masker gates it: inside its solid (grown
+// by its margin and 3σ(z)) when it has one, else inside its rectangle and depth range ± 3σ(z).
+// `p` is the pixel back-projected (camera frame), computed at most once per point by the caller.
+bool in_box(const ImageBox& b, const PinholeCamera& camera, float u, float v, float z,
+            float depth_noise, std::optional<Eigen::Vector3f>& p) {
+  if (!b.contains(u, v) || !(z > 0.0F)) return false;
+  const float sigma_z = depth_noise * z * z;
+  if (b.solid) {
+    // Quick reject by depth first: the grown solid reaches at most √3·(margin + 3σ(z)·|ray|)
+    // beyond the corners' depth range (|ray| < 2 inside any real field of view).
+    const float reach = std::sqrt(3.0F) * (b.solid->margin + 6.0F * sigma_z);
+    if (b.has_depth_range() && (z < b.z_min - reach || z > b.z_max + reach)) return false;
+    if (!p) p = camera.back_project(u, v, z).cast<float>();
+    const Eigen::Vector3f ray(p->x() / z, p->y() / z, 1.0F);
+    return b.solid->contains(*p, ray, sigma_z);
+  }
+  if (!b.has_depth_range()) return true;
+  return z >= b.z_min - 3.0F * sigma_z && z <= b.z_max + 3.0F * sigma_z;
+}
+
+}  // namespace
 
 DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeCamera& camera) {
   const DynamicObjects sem = semantic_->detect(frame, camera);
   DynamicObjects out = motion_->detect(frame, camera);
+  ++frame_count_;
+  const std::size_t now = frame_count_;
   const std::vector<ImageBox> moving = image_boxes(out, camera);
   const cv::Mat& m = out.pixel_mask;
   const bool has_mask =
@@ -366,14 +429,161 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
   };
   last_semantic_ = sem.boxes_2d.size() + sem.boxes_3d.size();
   last_kept_ = 0;
+  last_by_evidence_ = 0;
+  last_by_track_ = 0;
+
+  // The semantic boxes as image boxes (2-D first, then 3-D; an empty optional when wholly outside
+  // the image or behind the camera).
+  std::vector<std::optional<ImageBox>> boxes;
+  for (const cv::Rect2f& r : sem.boxes_2d) {
+    DynamicObjects one;
+    one.boxes_2d.push_back(r);
+    const std::vector<ImageBox> ib = image_boxes(one, camera);
+    boxes.push_back(ib.empty() ? std::nullopt : std::optional<ImageBox>(ib.front()));
+  }
+  for (std::size_t i = 0; i < sem.boxes_3d.size(); ++i) {
+    DynamicObjects one;
+    one.boxes_3d.push_back(sem.boxes_3d[i]);
+    if (!sem.boxes_3d_margin.empty()) one.boxes_3d_margin.push_back(sem.boxes_3d_margin[i]);
+    const std::vector<ImageBox> ib = image_boxes(one, camera);
+    boxes.push_back(ib.empty() ? std::nullopt : std::optional<ImageBox>(ib.front()));
+  }
+  std::vector<std::uint8_t> keep(boxes.size(), 0);
+  for (std::size_t i = 0; i < boxes.size(); ++i) keep[i] = boxes[i] && gate(*boxes[i]) ? 1 : 0;
+
+  const auto* geo = dynamic_cast<const GeometricMotionSource*>(motion_.get());
+  if (params_.evidence && geo != nullptr && !boxes.empty()) {
+    const float noise = geo->params().depth_noise;
+    const bool raw_depth = !frame.depth.empty() && frame.depth.type() == CV_16UC1 &&
+                           frame.depth.cols == camera.width && frame.depth.rows == camera.height;
+    const auto depth_at = [&](float u, float v) {
+      if (!raw_depth) return 0.0F;
+      const int x = std::clamp(static_cast<int>(std::lround(u)), 0, camera.width - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(v)), 0, camera.height - 1);
+      return static_cast<float>(frame.depth.at<std::uint16_t>(y, x) / camera.depth_scale);
+    };
+    // Trials and hits per box (index boxes.size() = outside every box: the frame's rate).
+    const std::size_t nb = boxes.size();
+    std::vector<std::size_t> kp_n(nb + 1, 0), kp_k(nb + 1, 0), px_n(nb + 1, 0), px_k(nb + 1, 0);
+    const auto count = [&](float u, float v, float z, bool hit, std::vector<std::size_t>& n,
+                           std::vector<std::size_t>& k) {
+      bool inside = false;
+      std::optional<Eigen::Vector3f> p;  // back-projected once (undistortion iterates)
+      for (std::size_t i = 0; i < nb; ++i) {
+        if (!boxes[i] || !in_box(*boxes[i], camera, u, v, z, noise, p)) continue;
+        inside = true;
+        ++n[i];
+        k[i] += hit ? 1U : 0U;
+      }
+      if (!inside) {
+        ++n[nb];
+        k[nb] += hit ? 1U : 0U;
+      }
+    };
+    for (const TestedKeypoint& t : geo->last_tested()) {
+      count(t.u, t.v, t.z, static_cast<double>(t.chi2) > params_.keypoint_chi2, kp_n, kp_k);
+    }
+    if (params_.pixel_evidence) {
+      // Flagged pixels are a subset of the tested ones (the same grid positions, in order).
+      std::vector<std::int64_t> flagged;
+      flagged.reserve(geo->last_moving_pixels().size());
+      const auto key = [&](const Eigen::Vector2f& q) {
+        return static_cast<std::int64_t>(std::lround(q.y())) * camera.width +
+               static_cast<std::int64_t>(std::lround(q.x()));
+      };
+      for (const Eigen::Vector2f& q : geo->last_moving_pixels()) flagged.push_back(key(q));
+      std::sort(flagged.begin(), flagged.end());
+      for (const Eigen::Vector2f& q : geo->last_warp_tested()) {
+        const bool hit = std::binary_search(flagged.begin(), flagged.end(), key(q));
+        count(q.x(), q.y(), depth_at(q.x(), q.y()), hit, px_n, px_k);
+      }
+    }
+    // The frame's false-alarm rate outside the boxes (pose error, sensor noise), never below the
+    // nominal level of the per-point test; (k + 1) / (n + 2) so that few trials stay cautious.
+    const auto rate = [](std::size_t k, std::size_t n, double nominal) {
+      return std::max(nominal, (static_cast<double>(k) + 1.0) / (static_cast<double>(n) + 2.0));
+    };
+    // χ²₃ upper tail at keypoint_chi2 (closed form for 3 dof).
+    const double c = params_.keypoint_chi2;
+    const double kp_nominal =
+        std::erfc(std::sqrt(c / 2.0)) + std::sqrt(2.0 * c / std::numbers::pi) * std::exp(-c / 2.0);
+    // The warp's per-pixel test: χ²₁ at warp_chi2.
+    const double px_nominal = std::erfc(std::sqrt(geo->params().warp_chi2 / 2.0));
+    const double kp_p0 = rate(kp_k[nb], kp_n[nb], kp_nominal);
+    const double px_p0 = rate(px_k[nb], px_n[nb], px_nominal);
+    // Evidence of this frame per box. 2-D boxes have no world position to track, and evidence in
+    // one frame alone is not enough (below): they keep the overlap gate.
+    std::vector<std::uint8_t> evidence(nb, 0);
+    for (std::size_t i = sem.boxes_2d.size(); i < nb; ++i) {
+      if (!boxes[i]) continue;
+      const bool kp_ok = binomial_sf(kp_k[i], kp_n[i], kp_p0) < params_.alpha;
+      const bool px_ok =
+          params_.pixel_evidence && binomial_sf(px_k[i], px_n[i], px_p0) < params_.alpha;
+      evidence[i] = kp_ok || px_ok ? 1 : 0;
+    }
+    const std::size_t n2 = sem.boxes_2d.size();
+    // Tracks of 3-D boxes (world frame): evidence in two consecutive frames confirms a track (the
+    // geometric source's rule for its candidates), a motion object overlapping the box at once;
+    // a confirmed track keeps every box associated with it until hold_frames frames pass without
+    // evidence, as the geometric source holds its objects.
+    const Eigen::Isometry3d& T_world_cam = geo->last_stats().T_world_cam;
+    std::erase_if(tracks_, [&](const Track& t) {
+      return now - t.last_evidence > static_cast<std::size_t>(params_.hold_frames);
+    });
+    std::vector<std::uint8_t> used(tracks_.size(), 0);
+    for (std::size_t j = 0; j < sem.boxes_3d.size(); ++j) {
+      const std::size_t i = n2 + j;
+      if (!boxes[i]) continue;
+      const Eigen::Matrix<float, 8, 3>& c3 = sem.boxes_3d[j];
+      const Eigen::Vector3d centre = T_world_cam * c3.cast<double>().colwise().mean().transpose();
+      const float margin = sem.boxes_3d_margin.empty() ? std::numeric_limits<float>::infinity()
+                                                       : sem.boxes_3d_margin[j];
+      // Two sightings of one object: their centres differ by up to 3σ of a difference of two
+      // uncertain centres, plus what it can move in between. Without a finite uncertainty, half
+      // the box's diagonal.
+      const double half_diag =
+          0.5 * static_cast<double>((c3.colwise().maxCoeff() - c3.colwise().minCoeff()).norm());
+      const double reach =
+          std::isfinite(margin) ? 3.0 * std::sqrt(2.0) * static_cast<double>(margin) : half_diag;
+      std::size_t best = tracks_.size();
+      double best_d = std::numeric_limits<double>::infinity();
+      for (std::size_t t = 0; t < tracks_.size(); ++t) {
+        if (used[t] != 0) continue;
+        const double dt = std::max(0.0, frame.timestamp - tracks_[t].timestamp);
+        const double d = (centre - tracks_[t].centre_world).norm();
+        if (d <= reach + params_.max_speed * dt && d < best_d) {
+          best = t;
+          best_d = d;
+        }
+      }
+      const bool old = keep[i] != 0;
+      const bool ev = old || evidence[i] != 0;
+      if (best == tracks_.size()) {
+        if (!ev) continue;
+        tracks_.push_back(Track{centre, frame.timestamp, now, old});
+        used.push_back(1);
+        continue;
+      }
+      Track& t = tracks_[best];
+      used[best] = 1;
+      if (ev) {
+        t.confirmed = t.confirmed || old || t.last_evidence + 1 == now;
+        t.last_evidence = now;
+      }
+      t.centre_world = centre;
+      t.timestamp = frame.timestamp;
+      if (!old && t.confirmed) {
+        keep[i] = 1;
+        ++(evidence[i] != 0 ? last_by_evidence_ : last_by_track_);
+      }
+    }
+  }
+
   // Scores: one per 2-D box when either source gives them (1 for boxes without).
   const bool with_scores = !sem.scores.empty() || !out.scores.empty();
   if (with_scores && out.scores.empty()) out.scores.assign(out.boxes_2d.size(), 1.0F);
   for (std::size_t i = 0; i < sem.boxes_2d.size(); ++i) {
-    DynamicObjects one;
-    one.boxes_2d.push_back(sem.boxes_2d[i]);
-    const std::vector<ImageBox> ib = image_boxes(one, camera);
-    if (ib.empty() || !gate(ib.front())) continue;
+    if (keep[i] == 0) continue;
     out.boxes_2d.push_back(sem.boxes_2d[i]);
     if (with_scores) out.scores.push_back(sem.scores.empty() ? 1.0F : sem.scores[i]);
     ++last_kept_;
@@ -381,15 +591,11 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const bool with_margins = !sem.boxes_3d_margin.empty() || !out.boxes_3d_margin.empty();
   if (with_margins) out.boxes_3d_margin.resize(out.boxes_3d.size(), kInf);
-  for (std::size_t i = 0; i < sem.boxes_3d.size(); ++i) {
-    const auto& c = sem.boxes_3d[i];
-    DynamicObjects one;
-    one.boxes_3d.push_back(c);
-    const std::vector<ImageBox> ib = image_boxes(one, camera);
-    if (ib.empty() || !gate(ib.front())) continue;
-    out.boxes_3d.push_back(c);
+  for (std::size_t j = 0; j < sem.boxes_3d.size(); ++j) {
+    if (keep[sem.boxes_2d.size() + j] == 0) continue;
+    out.boxes_3d.push_back(sem.boxes_3d[j]);
     if (with_margins) {
-      out.boxes_3d_margin.push_back(sem.boxes_3d_margin.empty() ? kInf : sem.boxes_3d_margin[i]);
+      out.boxes_3d_margin.push_back(sem.boxes_3d_margin.empty() ? kInf : sem.boxes_3d_margin[j]);
     }
     ++last_kept_;
   }
@@ -433,7 +639,8 @@ std::filesystem::path find_default_weights() {
 std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec,
                                                          const DynamicSourceOptions& options) {
   constexpr const char* kKnown =
-      "none, geometric, htx, file:PATH, A+B (e.g. htx+geometric) or A&B (e.g. htx&geometric)";
+      "none, geometric, htx, file:PATH, A+B (e.g. htx+geometric), A&B (e.g. htx&geometric) or "
+      "A&&geometric (e.g. htx&&geometric)";
   if (spec == "none") return std::make_shared<NoDynamicObjects>();
   if (spec == "geometric") return std::make_shared<GeometricMotionSource>();
   if (spec.rfind("file:", 0) == 0) {
@@ -452,6 +659,17 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
     auto detector = std::make_shared<const SparseDetector>(SparseDetector::load(weights));
     return std::make_shared<HtxSource>(std::move(detector), options.htx);
   }
+  if (const auto amp2 = spec.find("&&"); amp2 != std::string::npos) {
+    const std::string a = spec.substr(0, amp2);
+    const std::string b = spec.substr(amp2 + 2);
+    const bool a_ok = a == "geometric" || a == "htx" || (a.rfind("file:", 0) == 0 && a.size() > 5);
+    DS3D_CHECK(a_ok && b == "geometric", "ds3d::slam::make_dynamic_source: '", spec,
+               "' must gate a source by the geometric source's evidence (expected ", kKnown, ")");
+    MotionGateParams gate = options.gate;
+    gate.evidence = true;
+    return std::make_shared<MotionGatedSource>(make_dynamic_source(a, options),
+                                               make_dynamic_source(b, options), gate);
+  }
   if (const auto amp = spec.find('&'); amp != std::string::npos) {
     const std::string a = spec.substr(0, amp);
     const std::string b = spec.substr(amp + 1);
@@ -461,7 +679,7 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
     DS3D_CHECK(simple(a) && simple(b), "ds3d::slam::make_dynamic_source: '", spec,
                "' must gate one source by another, neither none (expected ", kKnown, ")");
     return std::make_shared<MotionGatedSource>(make_dynamic_source(a, options),
-                                               make_dynamic_source(b, options));
+                                               make_dynamic_source(b, options), options.gate);
   }
   if (const auto plus = spec.find('+'); plus != std::string::npos) {
     const std::string a = spec.substr(0, plus);

@@ -450,6 +450,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   DynamicObjects out;
   tested_.clear();
   moving_pixels_.clear();
+  warp_tested_.clear();
   if (frame.depth.empty() || frame.depth.type() != CV_16UC1 || frame.rgb.empty()) return out;
   if (frame.depth.cols != camera.width || frame.depth.rows != camera.height) return out;
 
@@ -810,6 +811,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
         if ((wref->win_max.at<std::uint16_t>(qv, qu) - rmn) / ds > edge_thr(zr)) continue;
         state[c] = 2;
         ++stats_.num_warp_tested;
+        warp_tested_.emplace_back(static_cast<float>(u), static_cast<float>(v));
         // In front of every surface the reference saw around there: the space was empty.
         const double slope =
             per_px *

@@ -184,6 +184,11 @@ class GeometricMotionSource final : public DynamicObjectSource {
   [[nodiscard]] const std::vector<Eigen::Vector2f>& last_moving_pixels() const noexcept {
     return moving_pixels_;
   }
+  /// The warp grid pixels (raw u, v) that the dense depth warp tested in the last detect() call
+  /// (flagged or not; a superset of last_moving_pixels()): the trials behind its false-alarm rate.
+  [[nodiscard]] const std::vector<Eigen::Vector2f>& last_warp_tested() const noexcept {
+    return warp_tested_;
+  }
 
  private:
   struct Past {
@@ -212,6 +217,7 @@ class GeometricMotionSource final : public DynamicObjectSource {
   GeometricMotionStats stats_;
   std::vector<TestedKeypoint> tested_;
   std::vector<Eigen::Vector2f> moving_pixels_;
+  std::vector<Eigen::Vector2f> warp_tested_;
   std::vector<Eigen::Vector3f> segment_world_;  // last frame's segment cells (world frame)
 };
 

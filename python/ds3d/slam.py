@@ -21,7 +21,9 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
         config: a ``ds3d.SlamConfig`` (its camera is replaced by the dataset's).
         dynamic: source of moving objects, as ``ds3d-slam --dynamic``: ``"none"``,
             ``"geometric"``, ``"htx"``, ``"file:PATH"``, ``"A+B"`` (e.g. ``"htx+geometric"``) or
-            ``"A&B"`` (A's boxes only where B sees motion, e.g. ``"htx&geometric"``);
+            ``"A&B"`` (A's boxes only where B sees motion, e.g. ``"htx&geometric"``) or
+            ``"A&&geometric"`` (A's boxes where the geometric source's raw evidence inside them
+            is significant, tracked while they stay, e.g. ``"htx&&geometric"``);
             any other than none filters keypoints with the box-gated HDBSCAN filter.
         weights: HTx weights file for ``htx`` (None: models/htx_lite_fast.safetensors of the
             source tree, else <prefix>/share/ds3d/models/).

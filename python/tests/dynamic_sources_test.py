@@ -191,7 +191,7 @@ def test_make_dynamic_source_builds_htx_and_composites():
     import pathlib
     weights = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "htx" / "tiny_weights.safetensors"
     f = ds3d.synth.Scene("walking_xyz", frames=1, seed=3).render(0)
-    for spec in ("htx", "htx+geometric", "geometric+htx", "htx&geometric"):
+    for spec in ("htx", "htx+geometric", "geometric+htx", "htx&geometric", "htx&&geometric"):
         src = ds3d.make_dynamic_source(spec, weights=weights, min_score=0.0, report_floor=True)
         assert src.name == spec
         o = src.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
@@ -199,8 +199,10 @@ def test_make_dynamic_source_builds_htx_and_composites():
         if spec == "htx":  # one metric uncertainty per box, the floor of the frame
             assert np.allclose(o.boxes_3d_margin, 0.15) and len(o.boxes_3d_margin) == len(o.boxes_3d)
             assert o.support_plane is not None and o.support_plane[1] < -0.8
-        if spec != "htx&geometric":  # the gate needs motion, which a first frame cannot show
+        if "&" not in spec:  # the gates need motion, which a first frame cannot show
             assert len(o.boxes_3d) > 0  # min_score 0 keeps the untrained fixture's boxes
+    with pytest.raises(ValueError, match="geometric source's evidence"):
+        ds3d.make_dynamic_source("htx&&htx", weights=weights)
     with pytest.raises(RuntimeError, match="nonexistent"):
         ds3d.make_dynamic_source("htx", weights="/nonexistent/w.safetensors")
     with pytest.raises(ValueError, match="detect_every"):

@@ -39,6 +39,9 @@ def test_walkers_are_found_where_the_generator_put_them():
         assert np.all(t["cluster"][~t["moving"]] == -1) and np.all(t["z"] > 0)
         dm = f["dynamic_mask"] > 0
         px = src.last_moving_pixels
+        tested = {(int(a), int(b)) for a, b in src.last_warp_tested}
+        assert src.last_warp_tested.shape[1:] == (2,) and len(tested) >= len(px)
+        assert all((int(a), int(b)) in tested for a, b in px)  # flagged pixels were tested
         if len(px):
             r = np.clip(np.round(px[:, 1]).astype(int), 0, 479)
             c = np.clip(np.round(px[:, 0]).astype(int), 0, 639)
@@ -89,6 +92,7 @@ def test_params_stats_and_errors():
     src = ds3d.GeometricMotionSource(p)
     assert src.name == "geometric" and src.params.num_features == 800
     assert src.last_tested.shape == (0,) and src.last_moving_pixels.shape == (0, 2)
+    assert src.last_warp_tested.shape == (0, 2)
     assert src.last_stats.as_dict()["num_objects"] == 0
     rgb = np.zeros((480, 640, 3), np.uint8)
     assert src.detect(rgb, None, 0.0, CAM).empty  # no depth: nothing

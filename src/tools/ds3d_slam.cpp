@@ -40,7 +40,8 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
-    "                 [--dynamic none|geometric|htx|htx+geometric|htx&geometric|file:PATH]\n"
+    "                 [--dynamic none|geometric|htx|htx+geometric|htx&geometric|htx&&geometric|\n"
+    "                            file:PATH]\n"
     "                 [--weights PATH]\n"
     "                 [--detect-every K] [--min-score S] [--floor] [--max-frames N] [--stats "
     "stats.json] "
@@ -56,8 +57,9 @@ constexpr const char* kUsage =
     "preprocessed\n"
     "  depth), file:PATH (JSON lines, see detections.hpp), or A+B: A, then B on what A left\n"
     "  (htx+geometric is 3DS-SLAM's semantic-then-geometric order), or A&B: A's boxes only where\n"
-    "  B sees motion in the frame (htx&geometric: detected people that move); keypoints in the "
-    "boxes go\n"
+    "  B sees motion in the frame (htx&geometric: detected people that move), or A&&geometric:\n"
+    "  A's boxes where the geometric source's raw evidence inside them is significant, tracked\n"
+    "  while they stay (MotionGateParams::evidence, docs/dynamic.md); keypoints in the boxes go\n"
     "  through the box-gated HDBSCAN filter (dynamic_filter.hpp).\n"
     "--weights: HTx weights file (default: models/htx_lite_fast.safetensors of the source tree,\n"
     "  else <prefix>/share/ds3d/models/). --detect-every K: run the detector on every K-th frame\n"

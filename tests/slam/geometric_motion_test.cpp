@@ -5,10 +5,13 @@
 // ../shared/data exists) recorded sequences: Bonn crowd (people walking) and TUM fr1_xyz (static
 // desk, fast handheld camera). DS3D_DEBUG_GEOM=1 prints a per-frame trace.
 // DS3D_GEOM_TEST_SOURCE=SPEC (a `--dynamic` value of ds3d-slam, e.g. htx or htx&geometric) runs
-// StaticRoomStaysClean and SyntheticScenariosAgainstMasks with that source instead; the latter
-// then prints its figures without checking them (docs/dynamic.md: the HTx source on the
-// synthetic scenarios). The other tests always run the geometric source. Measurement knobs for
-// that mode (docs/dynamic.md, session 7): DS3D_GEOM_TEST_HTX_UNCERTAINTY=M sets
+// StaticRoomStaysClean, SyntheticScenariosAgainstMasks and RecordedData with that source instead;
+// the synthetic scenarios then print their figures without checking them (docs/dynamic.md: the
+// HTx source on the synthetic scenarios). The other tests always run the geometric source.
+// DS3D_GEOM_TEST_GATE_ALPHA, _CHI2, _HOLD and _NO_PIXELS=1 set MotionGateParams' alpha,
+// keypoint_chi2, hold_frames and pixel_evidence = false (`htx&&geometric`, session 9);
+// DS3D_GEOM_TEST_FROM=N counts the synthetic scenes from frame N on. Measurement
+// knobs for that mode (docs/dynamic.md, session 7): DS3D_GEOM_TEST_HTX_UNCERTAINTY=M sets
 // HtxSourceParams::box_uncertainty (metres, or inf), DS3D_GEOM_TEST_FLOOR=1 sets
 // HtxSourceParams::report_floor (off by default), DS3D_GEOM_TEST_NO_PLANE=1 drops any support
 // plane of the source before the masker.
@@ -48,6 +51,8 @@ struct Counts {
   std::int64_t keypoints = 0, dynamic = 0, tp = 0, fp = 0, fn = 0;
   std::int64_t mask_on = 0, mask_off = 0;  // pixel_mask pixels on / off the truth mask
   int frames_with_objects = 0;
+  // MotionGatedSource only: semantic boxes, kept ones, kept by the evidence test or a track.
+  std::int64_t gate_semantic = 0, gate_kept = 0, gate_evidence = 0, gate_track = 0;
   [[nodiscard]] double dynamic_fraction() const {
     return keypoints > 0 ? static_cast<double>(dynamic) / static_cast<double>(keypoints) : 0.0;
   }
@@ -58,6 +63,14 @@ struct Counts {
     return tp + fn > 0 ? static_cast<double>(tp) / static_cast<double>(tp + fn) : 0.0;
   }
 };
+
+// The gate's counts, when the measured source is a MotionGatedSource (else empty).
+std::string gate_line(const Counts& c) {
+  if (c.gate_semantic == 0) return "";
+  return "; semantic boxes " + std::to_string(c.gate_semantic) + ", kept " +
+         std::to_string(c.gate_kept) + " (by evidence " + std::to_string(c.gate_evidence) +
+         ", by track " + std::to_string(c.gate_track) + ")";
+}
 
 struct Frame {
   FrameInput input;
@@ -80,6 +93,16 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
       opt.htx.box_uncertainty = std::stof(u);
     }
     opt.htx.report_floor = std::getenv("DS3D_GEOM_TEST_FLOOR") != nullptr;
+    if (const char* a = std::getenv("DS3D_GEOM_TEST_GATE_ALPHA"); a != nullptr) {
+      opt.gate.alpha = std::stod(a);
+    }
+    if (const char* c = std::getenv("DS3D_GEOM_TEST_GATE_CHI2"); c != nullptr) {
+      opt.gate.keypoint_chi2 = std::stod(c);
+    }
+    if (const char* h = std::getenv("DS3D_GEOM_TEST_GATE_HOLD"); h != nullptr) {
+      opt.gate.hold_frames = std::stoi(h);
+    }
+    opt.gate.pixel_evidence = std::getenv("DS3D_GEOM_TEST_GATE_NO_PIXELS") == nullptr;
     other = ds3d::slam::make_dynamic_source(other_spec, opt);
   }
   const bool drop_plane = std::getenv("DS3D_GEOM_TEST_NO_PLANE") != nullptr;
@@ -177,6 +200,12 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
     }
     if (i < from) continue;
     c.frames_with_objects += obj.boxes_3d.empty() ? 0 : 1;
+    if (const auto* g = dynamic_cast<const ds3d::slam::MotionGatedSource*>(other.get())) {
+      c.gate_semantic += static_cast<std::int64_t>(g->last_semantic());
+      c.gate_kept += static_cast<std::int64_t>(g->last_kept());
+      c.gate_evidence += static_cast<std::int64_t>(g->last_kept_by_evidence());
+      c.gate_track += static_cast<std::int64_t>(g->last_kept_by_track());
+    }
     if (!obj.pixel_mask.empty() && !f.truth.empty()) {
       const auto on = static_cast<std::int64_t>(cv::countNonZero(obj.pixel_mask & f.truth));
       c.mask_on += on;
@@ -208,6 +237,9 @@ Counts run_synthetic(ds3d::synth::Scenario scenario, int frames,
   opt.num_frames = frames;
   opt.seed = 7;
   const ds3d::synth::SyntheticScene scene(opt);
+  // DS3D_GEOM_TEST_FROM=N counts from frame N (the first frames hold no two-view evidence).
+  const char* from_env = std::getenv("DS3D_GEOM_TEST_FROM");
+  const std::size_t from = from_env != nullptr ? std::stoul(from_env) : 0;
   return run_source(
       [&](std::size_t i) {
         auto r = scene.render(i);
@@ -219,7 +251,7 @@ Counts run_synthetic(ds3d::synth::Scenario scenario, int frames,
         f.truth = r.dynamic_mask;
         return f;
       },
-      scene.size(), 0, opt.camera, ds3d::synth::scenario_name(scenario), gp, other_spec);
+      scene.size(), from, opt.camera, ds3d::synth::scenario_name(scenario), gp, other_spec);
 }
 
 TEST(GeometricMotion, RejectsBadParams) {
@@ -280,7 +312,7 @@ TEST(GeometricMotion, SyntheticScenariosAgainstMasks) {
     std::cout << ds3d::synth::scenario_name(sc) << ": keypoint precision " << c.precision()
               << " recall " << c.recall() << " (tp " << c.tp << " fp " << c.fp << " fn " << c.fn
               << ", static " << static_keypoints << "); segment pixels " << mask_px
-              << ", on people " << c.mask_on << "\n";
+              << ", on people " << c.mask_on << gate_line(c) << "\n";
     EXPECT_GT(c.tp + c.fn, 100) << ds3d::synth::scenario_name(sc);
     if (other_spec != nullptr) continue;  // another source: measured, not checked
     // Walkers are found within their first two seconds (0.44-0.80 with session 5's defaults;
@@ -314,7 +346,8 @@ TEST(GeometricMotion, SegmentsCoverTheBody) {
 }
 
 // Frames [first, first + frames) of a recorded sequence; counts from the tenth frame on.
-Counts run_recorded(const std::filesystem::path& dir, std::size_t first, std::size_t frames) {
+Counts run_recorded(const std::filesystem::path& dir, std::size_t first, std::size_t frames,
+                    const char* other_spec = nullptr) {
   const auto ds = ds3d::RgbdDataset::open(dir);
   return run_source(
       [&](std::size_t i) {
@@ -327,7 +360,7 @@ Counts run_recorded(const std::filesystem::path& dir, std::size_t first, std::si
         return f;
       },
       std::min(frames, ds.size() - std::min(first, ds.size())), 10, ds.camera(),
-      dir.filename().string());
+      dir.filename().string(), {}, other_spec);
 }
 
 // Recorded data: people walking are found (Bonn crowd), a static desk seen by a fast handheld
@@ -339,13 +372,16 @@ TEST(RecordedData, GeometricSourceFindsPeopleAndLeavesStaticScenes) {
     GTEST_SKIP() << "no recorded data";
   }
   // Bonn crowd: people enter at about frame 220 and walk until the end of the slice.
-  const Counts crowd = run_recorded(root / "bonn_crowd_first300", 215, 85);
+  const char* other_spec = std::getenv("DS3D_GEOM_TEST_SOURCE");
+  const Counts crowd = run_recorded(root / "bonn_crowd_first300", 215, 85, other_spec);
   // fr1_xyz: the whole slice, including the fast handheld motion of frames 150-250.
-  const Counts still = run_recorded(root / "tum_fr1_xyz_first400", 0, 400);
-  std::cout << "geometric: bonn_crowd frames 225-299: dynamic fraction " << crowd.dynamic_fraction()
+  const Counts still = run_recorded(root / "tum_fr1_xyz_first400", 0, 400, other_spec);
+  std::cout << (other_spec != nullptr ? other_spec : "geometric")
+            << ": bonn_crowd frames 225-299: dynamic fraction " << crowd.dynamic_fraction()
             << ", frames with objects " << crowd.frames_with_objects
             << "/75; tum_fr1_xyz frames 10-399: dynamic fraction " << still.dynamic_fraction()
-            << ", frames with objects " << still.frames_with_objects << "/390\n";
+            << ", frames with objects " << still.frames_with_objects << "/390\n"
+            << "  bonn" << gate_line(crowd) << "\n  fr1" << gate_line(still) << "\n";
   EXPECT_GT(crowd.frames_with_objects, 40);
   EXPECT_GT(crowd.dynamic_fraction(), 0.05);
   EXPECT_LT(still.dynamic_fraction(), 0.01);

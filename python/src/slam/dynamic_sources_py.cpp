@@ -335,8 +335,10 @@ void bind_dynamic_sources(py::module_& m) {
       py::arg("min_score") = py::none(), py::arg("box_uncertainty") = py::none(),
       py::arg("report_floor") = false,
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
-      "(A, then B on what A left, e.g. 'htx+geometric') or 'A&B' (A's boxes only where B sees\n"
-      "motion, e.g. 'htx&geometric'); weights = htx weights file ('' = the default model), "
+      "(A, then B on what A left, e.g. 'htx+geometric'), 'A&B' (A's boxes only where B sees\n"
+      "motion, e.g. 'htx&geometric') or 'A&&geometric' (A's boxes where the geometric source's\n"
+      "raw evidence inside them is significant, tracked; docs/dynamic.md, session 9);\n"
+      "weights = htx weights file ('' = the default model), "
       "detect_every\n"
       ">= 1, min_score in [0, 1] and box_uncertainty [m] (>= 0 or inf) and report_floor for htx. "
       "ValueError for\n"

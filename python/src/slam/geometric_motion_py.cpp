@@ -214,5 +214,21 @@ void bind_geometric_motion(py::module_& m) {
             return a;
           },
           "(M, 2) float32 warp grid pixels (u, v) flagged as moved into empty space in the last\n"
-          "detect() call.");
+          "detect() call.")
+      .def_property_readonly(
+          "last_warp_tested",
+          [](const GeometricMotionSource& s) {
+            const auto& px = s.last_warp_tested();
+            py::array_t<float> a(
+                {static_cast<py::ssize_t>(px.size()), static_cast<py::ssize_t>(2)});
+            auto r = a.mutable_unchecked<2>();
+            for (std::size_t i = 0; i < px.size(); ++i) {
+              r(static_cast<py::ssize_t>(i), 0) = px[i].x();
+              r(static_cast<py::ssize_t>(i), 1) = px[i].y();
+            }
+            return a;
+          },
+          "(T, 2) float32 warp grid pixels (u, v) the dense depth warp tested in the last "
+          "detect()\n"
+          "call, flagged or not (a superset of last_moving_pixels).");
 }
