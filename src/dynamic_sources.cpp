@@ -376,8 +376,11 @@ double binomial_sf(std::size_t k, std::size_t n, double p) {
   return std::min(1.0, sum);
 }
 
-// Whether pixel (u, v) with depth z lies in box `b` as the masker gates it: inside its solid (grown
-// by its margin and 3σ(z)) when it has one, else inside its rectangle and depth range ± 3σ(z).
+// Whether pixel (u, v) with depth z lies in box `b`, close to how the masker gates it: inside its
+// solid (grown by its margin and 3σ(z)) when it has one, else inside its rectangle and depth range
+// ± 3σ(z). Unlike the masker (DynamicFeatureFilter), σ is taken at the point's depth rather than
+// at the range's ends, and with a solid only a looser depth bound precedes the solid test (the
+// masker also requires the depth range ± 3σ there).
 // `p` is the pixel back-projected (camera frame), computed at most once per point by the caller.
 bool in_box(const ImageBox& b, const PinholeCamera& camera, float u, float v, float z,
             float depth_noise, std::optional<Eigen::Vector3f>& p) {

@@ -39,8 +39,17 @@ inline double no_contract(double p) {
   return p;
 }
 
+#if defined(__SSE2__)
+/// no_contract() for two packed doubles: keeps each product a separate rounding (no FMA).
+inline __m128d no_contract_v(__m128d v) {
+#if defined(__FMA__) && defined(__GNUC__)
+  asm("" : "+x"(v));
+#endif
+  return v;
+}
+#endif
 #if defined(__AVX2__)
-/// no_contract() for four packed doubles: keeps each product a separate rounding (no FMA).
+/// no_contract() for four packed doubles.
 inline __m256d no_contract256(__m256d v) {
 #if defined(__FMA__) && defined(__GNUC__)
   asm("" : "+x"(v));

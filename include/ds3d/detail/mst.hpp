@@ -111,13 +111,6 @@ inline std::size_t prim_step_generic(PrimSoA& s, const double* c, double cc2, do
 }
 
 #if defined(__SSE2__)
-inline __m128d no_contract_v(__m128d v) {
-#if defined(__FMA__) && defined(__GNUC__)
-  asm("" : "+x"(v));
-#endif
-  return v;
-}
-
 inline std::size_t prim_step_3d_sse2(PrimSoA& s, const double* c, double cc2, double cur) {
   const double* x = s.coords[0];
   const double* y = s.coords[1];

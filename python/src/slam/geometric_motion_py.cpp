@@ -116,6 +116,17 @@ py::array tested_array(const std::vector<ds3d::slam::TestedKeypoint>& t) {
   return out;
 }
 
+// (M, 2) float32 array of pixel positions (u, v).
+py::array_t<float> pixels_array(const std::vector<Eigen::Vector2f>& px) {
+  py::array_t<float> a({static_cast<py::ssize_t>(px.size()), static_cast<py::ssize_t>(2)});
+  auto r = a.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < px.size(); ++i) {
+    r(static_cast<py::ssize_t>(i), 0) = px[i].x();
+    r(static_cast<py::ssize_t>(i), 1) = px[i].y();
+  }
+  return a;
+}
+
 }  // namespace
 
 void bind_geometric_motion(py::module_& m) {
@@ -202,32 +213,12 @@ void bind_geometric_motion(py::module_& m) {
           "Empty without a trusted pose.")
       .def_property_readonly(
           "last_moving_pixels",
-          [](const GeometricMotionSource& s) {
-            const auto& px = s.last_moving_pixels();
-            py::array_t<float> a(
-                {static_cast<py::ssize_t>(px.size()), static_cast<py::ssize_t>(2)});
-            auto r = a.mutable_unchecked<2>();
-            for (std::size_t i = 0; i < px.size(); ++i) {
-              r(static_cast<py::ssize_t>(i), 0) = px[i].x();
-              r(static_cast<py::ssize_t>(i), 1) = px[i].y();
-            }
-            return a;
-          },
+          [](const GeometricMotionSource& s) { return pixels_array(s.last_moving_pixels()); },
           "(M, 2) float32 warp grid pixels (u, v) flagged as moved into empty space in the last\n"
           "detect() call.")
       .def_property_readonly(
           "last_warp_tested",
-          [](const GeometricMotionSource& s) {
-            const auto& px = s.last_warp_tested();
-            py::array_t<float> a(
-                {static_cast<py::ssize_t>(px.size()), static_cast<py::ssize_t>(2)});
-            auto r = a.mutable_unchecked<2>();
-            for (std::size_t i = 0; i < px.size(); ++i) {
-              r(static_cast<py::ssize_t>(i), 0) = px[i].x();
-              r(static_cast<py::ssize_t>(i), 1) = px[i].y();
-            }
-            return a;
-          },
+          [](const GeometricMotionSource& s) { return pixels_array(s.last_warp_tested()); },
           "(T, 2) float32 warp grid pixels (u, v) the dense depth warp tested in the last "
           "detect()\n"
           "call, flagged or not (a superset of last_moving_pixels).");
