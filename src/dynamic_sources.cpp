@@ -15,6 +15,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
+#include "ds3d/detail/kdtree.hpp"
 #include "ds3d/errors.hpp"
 #include "ds3d/geometric_motion.hpp"
 
@@ -127,6 +128,9 @@ std::vector<std::uint8_t> HdbscanMasker::mask(const FrameInput& frame, const Pin
   const Keypoints3f kp = keypoint_array(features, frame.depth, camera);
   last_ = filter_.filter(kp, image_boxes(objects, camera), camera, objects.support_plane);
   std::vector<std::uint8_t> out = last_.dynamic;
+  vetoed_ = 0;
+  added_ = 0;
+  confirm_foreground(frame, camera, kp, objects, out);
   const cv::Mat& m = objects.pixel_mask;
   if (!m.empty() && m.type() == CV_8UC1 && m.cols == camera.width && m.rows == camera.height) {
     for (std::size_t i = 0; i < features.size(); ++i) {
@@ -137,6 +141,99 @@ std::vector<std::uint8_t> HdbscanMasker::mask(const FrameInput& frame, const Pin
     }
   }
   return out;
+}
+
+void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCamera& camera,
+                                       const Keypoints3f& kp, const DynamicObjects& objects,
+                                       std::vector<std::uint8_t>& out) {
+  const auto& seg = objects.boxes_3d_segmented;
+  if (std::none_of(seg.begin(), seg.end(), [](std::uint8_t f) { return f != 0U; })) return;
+  DS3D_CHECK(seg.size() == objects.boxes_3d.size(),
+             "ds3d::slam::HdbscanMasker::mask: objects.boxes_3d_segmented must be empty or hold "
+             "one flag per 3-D box (got ",
+             seg.size(), " flags for ", objects.boxes_3d.size(), " boxes)");
+  DS3D_CHECK(std::isfinite(objects.foreground_radius) && objects.foreground_radius > 0.0F,
+             "ds3d::slam::HdbscanMasker::mask: objects.foreground_radius must be finite and > 0 "
+             "(got ",
+             objects.foreground_radius, ")");
+  // Image rectangles of the boxes without segmentation (their keypoints are not checked) and of
+  // the segmented ones (where keypoints without depth are looked at).
+  DynamicObjects plain;
+  DynamicObjects segmented;
+  plain.boxes_2d = objects.boxes_2d;
+  plain.scores = objects.scores;
+  for (std::size_t j = 0; j < objects.boxes_3d.size(); ++j) {
+    DynamicObjects& to = seg[j] != 0U ? segmented : plain;
+    to.boxes_3d.push_back(objects.boxes_3d[j]);
+  }
+  const std::vector<ImageBox> plain_rects = image_boxes(plain, camera);
+  const std::vector<ImageBox> seg_rects = image_boxes(segmented, camera);
+  const auto inside = [](const std::vector<ImageBox>& rects, float u, float v) {
+    return std::any_of(rects.begin(), rects.end(),
+                       [&](const ImageBox& b) { return b.contains(u, v); });
+  };
+  // The finite foreground points in a KD-tree (nearest-neighbour queries).
+  std::vector<std::uint32_t> finite_rows;
+  for (Eigen::Index r = 0; r < objects.foreground_points.rows(); ++r) {
+    if (objects.foreground_points.row(r).allFinite()) {
+      finite_rows.push_back(static_cast<std::uint32_t>(r));
+    }
+  }
+  const detail::KdTreeCloudAdaptor<Points3f> adaptor{objects.foreground_points, &finite_rows};
+  detail::KdTree3f<Points3f> tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  const double r2 = static_cast<double>(objects.foreground_radius) *
+                    static_cast<double>(objects.foreground_radius);
+  const auto on_segment = [&](float u, float v, double z) {
+    if (finite_rows.empty()) return false;
+    const Eigen::Vector3f q = camera.back_project(u, v, z).cast<float>();
+    std::uint32_t index = 0;
+    double d2 = 0.0;
+    tree.knnSearch(q.data(), 1, &index, &d2);
+    return d2 <= r2;
+  };
+  const cv::Mat& depth = frame.depth;
+  const bool raw = !depth.empty() && depth.type() == CV_16UC1 && depth.cols == camera.width &&
+                   depth.rows == camera.height;
+  std::vector<std::uint16_t> window;
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const auto r = static_cast<Eigen::Index>(i);
+    const float u = kp(r, 0);
+    const float v = kp(r, 1);
+    const float z = kp(r, 2);
+    if (!std::isfinite(u) || !std::isfinite(v)) continue;
+    if (std::isfinite(z) && z > 0.0F) {
+      if (out[i] == 0U || inside(plain_rects, u, v)) continue;
+      if (!on_segment(u, v, z)) {
+        out[i] = 0;
+        ++vetoed_;
+      }
+      continue;
+    }
+    // No depth at the keypoint.
+    if (inside(plain_rects, u, v) || !inside(seg_rects, u, v)) continue;
+    bool dynamic = false;
+    if (raw) {
+      const int x = std::clamp(static_cast<int>(std::lround(u)), 0, camera.width - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(v)), 0, camera.height - 1);
+      window.clear();
+      for (int yy = std::max(0, y - kForegroundWindow);
+           yy <= std::min(camera.height - 1, y + kForegroundWindow); ++yy) {
+        const auto* row = depth.ptr<std::uint16_t>(yy);
+        for (int xx = std::max(0, x - kForegroundWindow);
+             xx <= std::min(camera.width - 1, x + kForegroundWindow); ++xx) {
+          if (row[xx] != 0U) window.push_back(row[xx]);
+        }
+      }
+      if (!window.empty()) {
+        const auto mid = window.begin() + static_cast<std::ptrdiff_t>(window.size() / 2);
+        std::nth_element(window.begin(), mid, window.end());
+        dynamic = on_segment(u, v, static_cast<double>(*mid) / camera.depth_scale);
+      }
+    }
+    if (dynamic && out[i] == 0U) ++added_;
+    if (!dynamic && out[i] != 0U) ++vetoed_;
+    out[i] = dynamic ? 1 : 0;
+  }
 }
 
 // ---- HtxSource -------------------------------------------------------------------------------
@@ -153,6 +250,12 @@ void HtxSourceParams::validate() const {
   DS3D_CHECK(box_uncertainty >= 0.0F,
              "ds3d::slam::HtxSourceParams: box_uncertainty must be >= 0 or +inf (got ",
              box_uncertainty, ")");
+  DS3D_CHECK(foreground_min_prob > 0.0F && foreground_min_prob < 1.0F,
+             "ds3d::slam::HtxSourceParams: foreground_min_prob must be in (0, 1) (got ",
+             foreground_min_prob, ")");
+  DS3D_CHECK(std::isfinite(foreground_radius) && foreground_radius > 0.0F,
+             "ds3d::slam::HtxSourceParams: foreground_radius must be finite and > 0 (got ",
+             foreground_radius, ")");
 }
 
 namespace {
@@ -195,6 +298,12 @@ HtxSource::HtxSource(std::shared_ptr<const SparseDetector> detector, HtxSourcePa
   params_.validate();
   labels_ = class_labels(params_.classes, detector->config().class_names);
   const int threads = params_.num_threads;
+  run_ = [detector, threads](Eigen::Ref<const Points3f> xyz) {
+    DetectOptions opt;
+    opt.num_threads = threads;
+    opt.part_logits = true;
+    return detector->run(xyz, opt);
+  };
   detect_ = [detector = std::move(detector), threads](Eigen::Ref<const Points3f> xyz) {
     return detector->detect(xyz, threads);
   };
@@ -248,7 +357,29 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
   stats_.preprocess_ms = ms_since(t0);
   if (in.points.rows() == 0) return last_objects_;
   const auto t1 = std::chrono::steady_clock::now();
-  std::vector<Box3> boxes = detect_(in.points);
+  std::vector<Box3> boxes;
+  const bool segment = params_.segment && static_cast<bool>(run_);
+  if (segment) {
+    DetectorOutput o = run_(in.points);
+    boxes = std::move(o.boxes);
+    // Foreground: sigmoid(logit) > p  <=>  logit > log(p / (1 - p)); the rows of the drawn
+    // points give their camera-frame coordinates (a row drawn twice is kept twice: harmless).
+    const double p = params_.foreground_min_prob;
+    const auto min_logit = static_cast<float>(std::log(p / (1.0 - p)));
+    std::vector<Eigen::Index> fg;
+    for (Eigen::Index k = 0; k < o.part_logits.rows(); ++k) {
+      if (o.part_logits(k, 0) > min_logit) fg.push_back(k);
+    }
+    last_objects_.foreground_points.resize(static_cast<Eigen::Index>(fg.size()), 3);
+    for (std::size_t k = 0; k < fg.size(); ++k) {
+      last_objects_.foreground_points.row(static_cast<Eigen::Index>(k)) =
+          pre.points.row(static_cast<Eigen::Index>(in.rows[static_cast<std::size_t>(fg[k])]));
+    }
+    last_objects_.foreground_radius = params_.foreground_radius;
+    stats_.num_foreground = fg.size();
+  } else {
+    boxes = detect_(in.points);
+  }
   stats_.detect_ms = ms_since(t1);
   stats_.detected = true;
   const Eigen::Matrix3d R_cam_up = R_up_cam_.cast<double>().transpose();
@@ -266,6 +397,7 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     }
     last_objects_.boxes_3d.push_back(corners);
     last_objects_.boxes_3d_margin.push_back(params_.box_uncertainty);
+    if (segment) last_objects_.boxes_3d_segmented.push_back(1);
     boxes_.push_back(b);
   }
   stats_.num_boxes = boxes_.size();
@@ -273,6 +405,34 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
 }
 
 // ---- CompositeSource ---------------------------------------------------------------------------
+
+namespace {
+
+// One segmentation flag per 3-D box of `o` (0 where o gives none).
+std::vector<std::uint8_t> segmented_flags(const DynamicObjects& o) {
+  std::vector<std::uint8_t> f = o.boxes_3d_segmented;
+  f.resize(o.boxes_3d.size(), 0);
+  return f;
+}
+
+// Sets to.boxes_3d_segmented to `flags` (one per to.boxes_3d) and adds the foreground points of
+// `from` when one of its boxes made it into `to` segmented; empty flags when none is set.
+void merge_segmentation(DynamicObjects& to, std::vector<std::uint8_t> flags,
+                        const DynamicObjects& from, bool from_used) {
+  if (from_used && from.foreground_points.rows() > 0) {
+    const Eigen::Index n = to.foreground_points.rows();
+    to.foreground_radius =
+        n == 0 ? from.foreground_radius : std::max(to.foreground_radius, from.foreground_radius);
+    to.foreground_points.conservativeResize(n + from.foreground_points.rows(), 3);
+    to.foreground_points.bottomRows(from.foreground_points.rows()) = from.foreground_points;
+  }
+  if (std::none_of(flags.begin(), flags.end(), [](std::uint8_t f) { return f != 0U; })) {
+    flags.clear();
+  }
+  to.boxes_3d_segmented = std::move(flags);
+}
+
+}  // namespace
 
 CompositeSource::CompositeSource(std::shared_ptr<DynamicObjectSource> first,
                                  std::shared_ptr<DynamicObjectSource> second)
@@ -316,7 +476,11 @@ DynamicObjects CompositeSource::detect(const FrameInput& frame, const PinholeCam
     out.boxes_3d_margin.insert(out.boxes_3d_margin.end(), more.boxes_3d_margin.begin(),
                                more.boxes_3d_margin.end());
   }
+  std::vector<std::uint8_t> flags = segmented_flags(out);
+  const std::vector<std::uint8_t> more_flags = segmented_flags(more);
+  flags.insert(flags.end(), more_flags.begin(), more_flags.end());
   out.boxes_3d.insert(out.boxes_3d.end(), more.boxes_3d.begin(), more.boxes_3d.end());
+  merge_segmentation(out, std::move(flags), more, true);
   if (!out.support_plane) out.support_plane = more.support_plane;
   if (out.pixel_mask.empty()) {
     out.pixel_mask = more.pixel_mask;
@@ -594,14 +758,20 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const bool with_margins = !sem.boxes_3d_margin.empty() || !out.boxes_3d_margin.empty();
   if (with_margins) out.boxes_3d_margin.resize(out.boxes_3d.size(), kInf);
+  std::vector<std::uint8_t> flags = segmented_flags(out);
+  const std::vector<std::uint8_t> sem_flags = segmented_flags(sem);
+  bool sem_segmented = false;
   for (std::size_t j = 0; j < sem.boxes_3d.size(); ++j) {
     if (keep[sem.boxes_2d.size() + j] == 0) continue;
     out.boxes_3d.push_back(sem.boxes_3d[j]);
+    flags.push_back(sem_flags[j]);
+    sem_segmented = sem_segmented || sem_flags[j] != 0U;
     if (with_margins) {
       out.boxes_3d_margin.push_back(sem.boxes_3d_margin.empty() ? kInf : sem.boxes_3d_margin[j]);
     }
     ++last_kept_;
   }
+  merge_segmentation(out, std::move(flags), sem, sem_segmented);
   // The semantic source's floor (the motion source usually has none to give).
   out.support_plane = sem.support_plane ? sem.support_plane : out.support_plane;
   return out;

@@ -5,7 +5,15 @@
 // extracted beforehand; the objects are the image boxes of the generator's walkers (bounding
 // rectangle of each human_id), as a perfect 2-D detector would report them. One iteration masks
 // the whole sequence with a fresh masker (its carried regions start empty).
+// BM_HdbscanMaskerMaskSegmented: the same frames with segmented 3-D boxes instead (each walker's
+// axis-aligned camera-frame box of its pixels, flagged in boxes_3d_segmented) and the walkers'
+// pixels back-projected on a 4-pixel grid as DynamicObjects::foreground_points, as a perfect
+// part head would report them: the cost of the segmentation check on top of the filter.
 #include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
 
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
@@ -20,7 +28,41 @@ struct Prepared {
   ds3d::slam::FrameInput input;
   ds3d::slam::OrbFeatures features;
   ds3d::slam::DynamicObjects objects;
+  ds3d::slam::DynamicObjects segmented;
 };
+
+// Appends the walker on `m` to `o` as a segmented 3-D box and its foreground points.
+void add_segmented(ds3d::slam::DynamicObjects& o, const cv::Mat& m, const cv::Mat& depth,
+                   const ds3d::PinholeCamera& cam) {
+  std::vector<Eigen::Vector3f> pts;
+  for (int y = 0; y < m.rows; y += 4) {
+    for (int x = 0; x < m.cols; x += 4) {
+      const auto d = depth.at<std::uint16_t>(y, x);
+      if (m.at<std::uint8_t>(y, x) == 0U || d == 0U) continue;
+      pts.push_back(cam.back_project(x, y, d / cam.depth_scale).cast<float>());
+    }
+  }
+  if (pts.empty()) return;
+  Eigen::Vector3f lo = pts[0];
+  Eigen::Vector3f hi = pts[0];
+  for (const auto& p : pts) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  Eigen::Matrix<float, 8, 3> c;
+  for (int i = 0; i < 8; ++i) {
+    c.row(i) << ((i & 1) ? hi.x() : lo.x()), ((i & 2) ? hi.y() : lo.y()),
+        ((i & 4) ? hi.z() : lo.z());
+  }
+  o.boxes_3d.push_back(c);
+  o.boxes_3d_margin.push_back(0.15F);
+  o.boxes_3d_segmented.push_back(1);
+  const Eigen::Index n = o.foreground_points.rows();
+  o.foreground_points.conservativeResize(n + static_cast<Eigen::Index>(pts.size()), 3);
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    o.foreground_points.row(n + static_cast<Eigen::Index>(k)) = pts[k].transpose();
+  }
+}
 
 const std::vector<Prepared>& prepared() {
   static const std::vector<Prepared> p = [] {
@@ -44,6 +86,7 @@ const std::vector<Prepared>& prepared() {
         if (cv::countNonZero(m) == 0) continue;
         q.objects.boxes_2d.push_back(cv::Rect2f(cv::boundingRect(m)));
         q.objects.scores.push_back(0.9F);
+        add_segmented(q.segmented, m, f.depth, o.camera);
       }
       out.push_back(std::move(q));
     }
@@ -70,6 +113,33 @@ void BM_HdbscanMaskerMask(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * n);
 }
 BENCHMARK(BM_HdbscanMaskerMask)->Unit(benchmark::kMillisecond);
+
+void BM_HdbscanMaskerMaskSegmented(benchmark::State& state) {
+  const ds3d::PinholeCamera cam = ds3d::synth::SynthOptions{}.camera;
+  const auto& frames = prepared();
+  std::int64_t dynamic = 0;
+  std::int64_t vetoed = 0;
+  std::int64_t fg = 0;
+  for (auto _ : state) {
+    ds3d::slam::HdbscanMasker masker;
+    dynamic = 0;
+    vetoed = 0;
+    fg = 0;
+    for (const auto& f : frames) {
+      const auto m = masker.mask(f.input, cam, f.features, f.segmented);
+      dynamic += std::count(m.begin(), m.end(), std::uint8_t{1});
+      vetoed += static_cast<std::int64_t>(masker.last_vetoed());
+      fg += f.segmented.foreground_points.rows();
+      benchmark::DoNotOptimize(m.data());
+    }
+  }
+  const auto n = static_cast<double>(frames.size());
+  state.counters["dynamic_kp_per_frame"] = static_cast<double>(dynamic) / n;
+  state.counters["vetoed_kp_per_frame"] = static_cast<double>(vetoed) / n;
+  state.counters["foreground_points_per_frame"] = static_cast<double>(fg) / n;
+  state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(frames.size()));
+}
+BENCHMARK(BM_HdbscanMaskerMaskSegmented)->Unit(benchmark::kMillisecond);
 
 // image_boxes() of four 3-D boxes (projection of 8 corners each): the per-frame glue cost.
 void BM_ImageBoxes3d(benchmark::State& state) {

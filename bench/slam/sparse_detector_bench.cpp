@@ -48,8 +48,9 @@ BENCHMARK(BM_HtxDetect)
     ->Unit(benchmark::kMillisecond)
     ->MinTime(1.0);
 
-// Args: profile (0 fast, 1 quality). One thread. Counters: preprocess_ms / detect_ms (wall,
-// mean per frame) and the preprocessed cloud size.
+// Args: profile (0 fast, 1 quality), segment (HtxSourceParams::segment: the part head runs on
+// every point and the foreground is gathered). One thread. Counters: preprocess_ms / detect_ms
+// (wall, mean per frame) and the preprocessed cloud size.
 void BM_HtxFrame(benchmark::State& state) {
   ds3d::synth::SynthOptions so;
   so.num_frames = 8;
@@ -68,7 +69,7 @@ void BM_HtxFrame(benchmark::State& state) {
   }
   auto det =
       std::make_shared<const ds3d::SparseDetector>(detector(static_cast<int>(state.range(0))));
-  ds3d::slam::HtxSource src(det, {.classes = {}});
+  ds3d::slam::HtxSource src(det, {.classes = {}, .segment = state.range(1) != 0});
   double pre_ms = 0;
   double det_ms = 0;
   double points = 0;
@@ -84,12 +85,11 @@ void BM_HtxFrame(benchmark::State& state) {
   state.counters["preprocess_ms"] = pre_ms / n;
   state.counters["detect_ms"] = det_ms / n;
   state.counters["cloud_points"] = points / n;
-  state.SetLabel(det->config().profile);
+  state.SetLabel(det->config().profile + (state.range(1) != 0 ? "+segment" : ""));
 }
 BENCHMARK(BM_HtxFrame)
-    ->ArgName("profile")
-    ->Arg(0)
-    ->Arg(1)
+    ->ArgNames({"profile", "segment"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
     ->Unit(benchmark::kMillisecond)
     ->MinTime(1.0);
 

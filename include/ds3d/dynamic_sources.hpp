@@ -63,6 +63,16 @@ class FileSource final : public DynamicObjectSource {
 /// non-zero pixel of DynamicObjects::pixel_mask are dynamic as well. Depth is read from the raw
 /// depth image at the keypoint (so points beyond the ORB close/far threshold still get theirs),
 /// falling back to the feature's depth when the frame has no depth image.
+///
+/// **Segmented boxes** (DynamicObjects::boxes_3d_segmented, e.g. HtxSource with segment): after
+/// the filter, a dynamic keypoint that lies in no unsegmented box's image rectangle stays
+/// dynamic only if its 3-D point (camera back-projection of its pixel and depth) lies within
+/// DynamicObjects::foreground_radius of a foreground point. A keypoint without depth inside a
+/// segmented box's rectangle takes the median of the valid depths in the
+/// (2·kForegroundWindow + 1)² pixels around it (depth holes fringe object silhouettes) and is
+/// dynamic exactly when that point passes the same test (no valid depth there: static).
+/// So the box filter proposes and the segmentation confirms: furniture in a person's box,
+/// false boxes without foreground, and floor at the feet stay static.
 class HdbscanMasker final : public DynamicFeatureMasker {
  public:
   /// @throws ds3d::InvalidArgument on bad params.
@@ -71,12 +81,24 @@ class HdbscanMasker final : public DynamicFeatureMasker {
                                  const OrbFeatures& features,
                                  const DynamicObjects& objects) override;
   [[nodiscard]] std::string name() const override { return "hdbscan"; }
-  /// The filter's outcome for the last frame (boxes, clusters, fallback use).
+  /// The filter's outcome for the last frame (boxes, clusters, fallback use), before the
+  /// segmentation check and the pixel mask.
   [[nodiscard]] const DynamicFilterResult& last_result() const noexcept { return last_; }
+  /// Half-size [px] of the depth window for keypoints without depth in segmented boxes.
+  static constexpr int kForegroundWindow = 4;
+  /// Keypoints the segmentation check made static (last frame).
+  [[nodiscard]] std::size_t last_vetoed() const noexcept { return vetoed_; }
+  /// Keypoints without depth the segmentation check made dynamic (last frame).
+  [[nodiscard]] std::size_t last_added() const noexcept { return added_; }
 
  private:
+  void confirm_foreground(const FrameInput& frame, const PinholeCamera& camera,
+                          const Keypoints3f& kp, const DynamicObjects& objects,
+                          std::vector<std::uint8_t>& out);
   DynamicFeatureFilter filter_;
   DynamicFilterResult last_;
+  std::size_t vetoed_ = 0;
+  std::size_t added_ = 0;
 };
 
 /// The image boxes of `objects`: its 2-D boxes (with their scores, 1 when absent) and its 3-D
@@ -113,17 +135,29 @@ struct HtxSourceParams {
   /// fr1's `htx` ATE improves, but on the recorded people (Bonn crowd ATE, the TUM fr3 person
   /// masks) it removes fewer person keypoints (docs/dynamic.md, session 7).
   bool report_floor = false;
+  /// Run the detector's Part-A2 part head on every input point and report the points it
+  /// segments as foreground (probability > foreground_min_prob) as
+  /// DynamicObjects::foreground_points, with every box flagged in boxes_3d_segmented: the masker
+  /// then keeps a box's dynamic keypoint only on that segment (docs/dynamic.md, session 10).
+  /// Needs the SparseDetector constructor (a DetectFn gives no segmentation; ignored then).
+  bool segment = true;
+  float foreground_min_prob = 0.5F;  ///< foreground decision on the part head's sigmoid, (0, 1)
+  /// DynamicObjects::foreground_radius reported [m], > 0, finite. Default 2 voxel leaves of the
+  /// default preprocess (0.1 m): a keypoint lies within about one leaf of its voxel's centroid,
+  /// and the nearest foreground centroid may be the next voxel's.
+  float foreground_radius = 0.2F;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 
 /// What HtxSource did on the last frame.
 struct HtxFrameStats {
   bool detected = false;  ///< the detector ran (false: frame skipped by detect_every, or no depth)
-  bool ground_found = false;   ///< the gravity alignment came from this frame's floor plane
-  std::size_t num_points = 0;  ///< preprocessed points (before the draw)
-  std::size_t num_boxes = 0;   ///< boxes reported (after the class and score filters)
-  double preprocess_ms = 0;    ///< wall time of preprocess + draw [ms]
-  double detect_ms = 0;        ///< wall time of the network + post-processing [ms]
+  std::size_t num_foreground = 0;  ///< input points segmented as foreground (segment only)
+  bool ground_found = false;       ///< the gravity alignment came from this frame's floor plane
+  std::size_t num_points = 0;      ///< preprocessed points (before the draw)
+  std::size_t num_boxes = 0;       ///< boxes reported (after the class and score filters)
+  double preprocess_ms = 0;        ///< wall time of preprocess + draw [ms]
+  double detect_ms = 0;            ///< wall time of the network + post-processing [ms]
 };
 
 /// The `htx` source (3DS-SLAM §III-B/C): per frame, preprocess() the depth image (back-projection,
@@ -169,6 +203,8 @@ class HtxSource final : public DynamicObjectSource {
 
  private:
   DetectFn detect_;
+  // The full forward pass (boxes + part logits), only with the SparseDetector constructor.
+  std::function<DetectorOutput(Eigen::Ref<const Points3f>)> run_;
   std::vector<std::int32_t> labels_;  // dynamic class indices; empty = all
   HtxSourceParams params_;
   Eigen::Matrix3f R_up_cam_;

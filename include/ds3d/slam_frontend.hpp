@@ -69,6 +69,18 @@ struct DynamicObjects {
   /// The supporting plane (floor) in the camera frame, (n, d) with n·p + d = 0, when the source
   /// found one; the masker keeps keypoints on it static (dynamic_filter.hpp).
   std::optional<Eigen::Vector4f> support_plane;
+  /// Points the source segmented as lying on its objects [m, camera frame], e.g. HtxSource's
+  /// part-head foreground (HtxSourceParams::segment). Used only for the 3-D boxes flagged in
+  /// boxes_3d_segmented: the masker keeps a keypoint that such a box made dynamic only when the
+  /// keypoint's 3-D point lies within foreground_radius of one of these points (see
+  /// HdbscanMasker). Non-finite rows are ignored.
+  Points3f foreground_points;
+  /// One per boxes_3d entry, or empty (= none): non-zero = the box comes with the segmentation
+  /// in foreground_points, so its dynamic keypoints are confirmed against it.
+  std::vector<std::uint8_t> boxes_3d_segmented;
+  /// Largest distance [m] from a keypoint's 3-D point to a foreground point for the keypoint to
+  /// count as on the segment; > 0. HtxSource sets twice its voxel leaf.
+  float foreground_radius = 0.2F;
 };
 
 /// Stage "dynamic-object source": finds moving objects in a frame (runs beside feature

@@ -215,3 +215,46 @@ def test_make_dynamic_source_builds_htx_and_composites():
     # The floor is reported only on request (report_floor, off by default).
     plain = ds3d.make_dynamic_source("htx", weights=weights, min_score=0.0)
     assert plain.detect(f["rgb"], f["depth"], f["timestamp"], CAM).support_plane is None
+
+
+def test_segmentation_fields_and_the_masker_check():
+    """foreground_points / boxes_3d_segmented round-trip, htx reports them (segment, default on)
+    and the masker keeps a segmented box's dynamic keypoints only near the foreground."""
+    import pathlib
+    weights = pathlib.Path(__file__).resolve().parents[2] / "models" / "htx_lite_fast.safetensors"
+    f = ds3d.synth.Scene("walking_xyz", frames=1, seed=7, humans=1).render(0)
+    src = ds3d.make_dynamic_source("htx", weights=weights)
+    o = src.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
+    assert len(o.boxes_3d) > 0 and o.boxes_3d_segmented.dtype == bool and o.boxes_3d_segmented.all()
+    fg = o.foreground_points
+    assert fg.shape[1] == 3 and len(fg) > 20 and fg.dtype == np.float32
+    u = np.round(525 * fg[:, 0] / fg[:, 2] + 319.5).astype(int).clip(0, 639)
+    v = np.round(525 * fg[:, 1] / fg[:, 2] + 239.5).astype(int).clip(0, 479)
+    assert (f["dynamic_mask"][v, u] > 0).mean() > 0.8  # the points lie on the walker
+    off = ds3d.make_dynamic_source("htx", weights=weights, segment=False)
+    o2 = off.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
+    assert len(o2.foreground_points) == 0 and len(o2.boxes_3d_segmented) == 0
+    assert np.allclose(o2.boxes_3d, o.boxes_3d)
+    # The masker: the same box with no foreground near the walker keeps everything static.
+    feats = ds3d.OrbExtractor().extract(f["rgb"], f["depth"], CAM)
+    with_fg = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, o, CAM)
+    far = ds3d.DynamicObjects(boxes_3d=o.boxes_3d, boxes_3d_margin=o.boxes_3d_margin,
+                              foreground_points=[[9.0, 9.0, 9.0]],
+                              boxes_3d_segmented=np.ones(len(o.boxes_3d), bool))
+    assert with_fg.sum() > 0
+    assert ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, far, CAM).sum() == 0
+    kp = feats.keypoints.round().astype(int)
+    on = f["dynamic_mask"][kp[:, 1].clip(0, 479), kp[:, 0].clip(0, 639)] > 0
+    without = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, o2, CAM)
+    assert on[with_fg].mean() > on[without].mean() + 0.1  # fewer keypoints off the walker
+    # With the floor reported too, the dynamic keypoints are (nearly) all on the walker.
+    floor = ds3d.make_dynamic_source("htx", weights=weights, report_floor=True)
+    o3 = floor.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
+    dyn3 = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, o3, CAM)
+    assert dyn3.sum() > 10 and on[dyn3].mean() > 0.9
+    with pytest.raises(ValueError, match="boxes_3d_segmented"):
+        ds3d.DynamicObjects(boxes_3d=o.boxes_3d, boxes_3d_segmented=[True] * (len(o.boxes_3d) + 1))
+    with pytest.raises(ValueError, match="foreground_points"):
+        ds3d.DynamicObjects(foreground_points=np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="foreground_radius"):
+        ds3d.DynamicObjects(foreground_radius=0.0)

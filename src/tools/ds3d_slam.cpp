@@ -43,7 +43,9 @@ constexpr const char* kUsage =
     "                 [--dynamic none|geometric|htx|htx+geometric|htx&geometric|htx&&geometric|\n"
     "                            file:PATH]\n"
     "                 [--weights PATH]\n"
-    "                 [--detect-every K] [--min-score S] [--floor] [--max-frames N] [--stats "
+    "                 [--detect-every K] [--min-score S] [--floor] [--no-segment] [--max-frames "
+    "N]\n"
+    "                 [--stats "
     "stats.json] "
     "[--viz OUT_DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
@@ -67,7 +69,8 @@ constexpr const char* kUsage =
     "  in [0, 1] (default 0.3). --floor: keypoints on the floor plane that the detector's\n"
     "  preprocessing finds stay static (HtxSourceParams::report_floor; off by default, see\n"
     "  docs/dynamic.md: better precision on synthetic scenes, fewer person keypoints removed on\n"
-    "  recorded ones).\n"
+    "  recorded ones). --no-segment: do not confirm the detector's boxes with its part head's\n"
+    "  foreground points (HtxSourceParams::segment, on by default since session 10).\n"
     "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
     "(blue).\n"
     "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
@@ -94,6 +97,7 @@ struct Args {
   int detect_every = 1;
   float min_score = -1.0F;  // < 0 = the HtxSourceParams default
   bool floor = false;
+  bool no_segment = false;
   std::size_t max_frames = 0;
   std::filesystem::path stats;
   std::filesystem::path viz;
@@ -172,6 +176,8 @@ Args parse(int argc, char** argv) {
       a.min_score = x;
     } else if (s == "--floor") {
       a.floor = true;
+    } else if (s == "--no-segment") {
+      a.no_segment = true;
     } else if (s == "--max-frames") {
       a.max_frames = static_cast<std::size_t>(parse_int(s, value(), 0));
     } else if (s == "--stats") {
@@ -218,8 +224,11 @@ Args parse(int argc, char** argv) {
   a.dataset = pos[0];
   const bool uses_htx =
       a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
-  if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor)) {
-    usage_error("--weights, --detect-every, --min-score and --floor need --dynamic htx or htx+...");
+  if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor ||
+                    a.no_segment)) {
+    usage_error(
+        "--weights, --detect-every, --min-score, --floor and --no-segment need --dynamic htx or "
+        "htx+...");
   }
   return a;
 }
@@ -307,6 +316,7 @@ int run(const Args& a) {
   sopt.htx.detect_every = a.detect_every;
   if (a.min_score >= 0.0F) sopt.htx.min_score = a.min_score;
   sopt.htx.report_floor = a.floor;
+  sopt.htx.segment = !a.no_segment;
   std::shared_ptr<ds3d::slam::DynamicObjectSource> source;
   try {
     source = ds3d::slam::make_dynamic_source(a.dynamic, sopt);

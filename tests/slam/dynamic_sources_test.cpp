@@ -6,11 +6,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
@@ -155,6 +158,118 @@ TEST(HdbscanMasker, MarksKeypointsOnTheBoxedPersonAndOnTheMask) {
   EXPECT_LE(fn, tp / 20);
   obj.scores.push_back(0.5F);  // two scores for one box
   EXPECT_THROW((void)masker.mask(f, ds3d::PinholeCamera{}, feats, obj), ds3d::InvalidArgument);
+}
+
+// A person (slab at 1.5 m, u 250-310) with a chair at the same depth right beside it (u 311-420)
+// in front of a wall at 3 m: one 3-D box holds both, so the box filter's foreground cluster
+// takes the chair too. With the box flagged as segmented and the person's pixels as foreground
+// points, only the person (and chair keypoints within foreground_radius of it) stays dynamic;
+// depth holes on the person's edge become dynamic, holes on the chair's far edge do not.
+TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
+  const ds3d::PinholeCamera cam;
+  cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(15000));     // wall, 3 m
+  cv::Mat(depth, cv::Rect(250, 80, 171, 400)).setTo(7500);  // person and chair, 1.5 m
+  cv::Mat(depth, cv::Rect(246, 200, 8, 40)).setTo(0);       // hole on the person's left edge
+  cv::Mat(depth, cv::Rect(414, 200, 10, 40)).setTo(0);      // hole on the chair's right edge
+  FrameInput f;
+  f.depth = depth;
+  ds3d::slam::OrbFeatures feats;
+  const auto add = [&](float u, float v) {
+    feats.keypoints.emplace_back(u, v, 31.0F);
+    feats.undistorted.emplace_back(u, v);
+    feats.depth.push_back(0.0F);  // the masker reads the depth image
+  };
+  for (int v = 12; v < 480; v += 10) {
+    for (int u = 12; u < 640; u += 10) add(static_cast<float>(u), static_cast<float>(v));
+  }
+  const std::size_t grid = feats.size();
+  add(250.0F, 215.0F);  // in the person-edge hole
+  add(418.0F, 215.0F);  // in the chair-edge hole
+  DynamicObjects obj;
+  Eigen::Matrix<float, 8, 3> c;
+  const float x0 = static_cast<float>((240 - cam.cx) * 1.3 / cam.fx);
+  const float x1 = static_cast<float>((430 - cam.cx) * 1.7 / cam.fx);
+  const float y0 = static_cast<float>((70 - cam.cy) * 1.7 / cam.fy);
+  for (int i = 0; i < 8; ++i) {
+    c.row(i) << ((i & 1) ? x1 : x0), ((i & 2) ? 1.2F : y0), ((i & 4) ? 1.8F : 1.3F);
+  }
+  obj.boxes_3d.push_back(c);
+  obj.boxes_3d_margin.push_back(0.1F);
+  std::vector<Eigen::Vector3f> fg;
+  for (int v = 80; v < 480; v += 8) {
+    for (int u = 250; u <= 310; u += 8) fg.push_back(cam.back_project(u, v, 1.5).cast<float>());
+  }
+  obj.foreground_points.resize(static_cast<Eigen::Index>(fg.size()), 3);
+  for (std::size_t k = 0; k < fg.size(); ++k) {
+    obj.foreground_points.row(static_cast<Eigen::Index>(k)) = fg[k].transpose();
+  }
+  const auto on_chair_far = [&](std::size_t i) {  // more than 0.2 m (70 px) from the person
+    return feats.keypoints[i].pt.x > 385.0F && feats.keypoints[i].pt.x <= 420.0F &&
+           feats.keypoints[i].pt.y > 85.0F;
+  };
+  const auto on_person = [&](std::size_t i) {
+    return feats.keypoints[i].pt.x >= 256.0F && feats.keypoints[i].pt.x <= 304.0F &&
+           feats.keypoints[i].pt.y > 90.0F;
+  };
+  const auto count = [&](const std::vector<std::uint8_t>& m, const auto& where) {
+    int n = 0;
+    int on = 0;
+    for (std::size_t i = 0; i < grid; ++i) {
+      if (!where(i)) continue;
+      ++n;
+      on += m[i] != 0U ? 1 : 0;
+    }
+    return std::pair<int, int>{on, n};
+  };
+
+  // Without the flag the foreground points are ignored: the chair is taken with the person.
+  ds3d::slam::HdbscanMasker plain;
+  const auto m0 = plain.mask(f, cam, feats, obj);
+  EXPECT_GT(count(m0, on_chair_far).first, count(m0, on_chair_far).second / 2);
+  EXPECT_EQ(plain.last_vetoed(), 0U);
+
+  obj.boxes_3d_segmented.push_back(1);
+  ds3d::slam::HdbscanMasker masker;
+  const auto m = masker.mask(f, cam, feats, obj);
+  const auto [person_on, person_n] = count(m, on_person);
+  EXPECT_GT(person_n, 100);
+  EXPECT_EQ(person_on, person_n);
+  EXPECT_EQ(count(m, on_chair_far).first, 0);
+  EXPECT_GT(masker.last_vetoed(), 0U);
+  EXPECT_EQ(m[grid], 1) << "a hole on the person's edge takes the person's depth";
+  EXPECT_EQ(m[grid + 1], 0) << "a hole on the chair's far edge is not on the person";
+  for (std::size_t i = 0; i < grid; ++i) {
+    if (feats.keypoints[i].pt.y < 70.0F) {
+      EXPECT_EQ(m[i], 0) << "above the box";
+    }
+  }
+
+  // An unsegmented 2-D box over the chair: its keypoints are not checked.
+  DynamicObjects both = obj;
+  both.boxes_2d.emplace_back(380.0F, 80.0F, 45.0F, 399.0F);
+  ds3d::slam::HdbscanMasker mixed;
+  const auto m2 = mixed.mask(f, cam, feats, both);
+  EXPECT_GT(count(m2, on_chair_far).first, 0);
+
+  // Flagged with no foreground at all: nothing in the box stays dynamic.
+  DynamicObjects none = obj;
+  none.foreground_points.resize(0, 3);
+  ds3d::slam::HdbscanMasker empty_fg;
+  const auto m3 = empty_fg.mask(f, cam, feats, none);
+  EXPECT_EQ(std::count(m3.begin(), m3.end(), std::uint8_t{1}), 0);
+
+  // Malformed: one flag per 3-D box, a positive finite radius.
+  DynamicObjects bad = obj;
+  bad.boxes_3d_segmented.push_back(1);
+  EXPECT_THROW((void)masker.mask(f, cam, feats, bad), ds3d::InvalidArgument);
+  bad = obj;
+  bad.foreground_radius = std::nanf("");
+  try {
+    (void)masker.mask(f, cam, feats, bad);
+    ADD_FAILURE() << "no exception";
+  } catch (const ds3d::InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("foreground_radius"), std::string::npos) << e.what();
+  }
 }
 
 TEST(GeometricMotion, RejectsBadParamsAndIgnoresFramesWithoutDepth) {

@@ -14,7 +14,9 @@
 // knobs for that mode (docs/dynamic.md, session 7): DS3D_GEOM_TEST_HTX_UNCERTAINTY=M sets
 // HtxSourceParams::box_uncertainty (metres, or inf), DS3D_GEOM_TEST_FLOOR=1 sets
 // HtxSourceParams::report_floor (off by default), DS3D_GEOM_TEST_NO_PLANE=1 drops any support
-// plane of the source before the masker.
+// plane of the source before the masker, DS3D_GEOM_TEST_NO_SEGMENT=1 sets
+// HtxSourceParams::segment = false (no part-head confirmation, as before session 10),
+// DS3D_GEOM_TEST_FG_RADIUS=M sets HtxSourceParams::foreground_radius.
 #include "ds3d/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
@@ -93,6 +95,10 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
       opt.htx.box_uncertainty = std::stof(u);
     }
     opt.htx.report_floor = std::getenv("DS3D_GEOM_TEST_FLOOR") != nullptr;
+    opt.htx.segment = std::getenv("DS3D_GEOM_TEST_NO_SEGMENT") == nullptr;
+    if (const char* r = std::getenv("DS3D_GEOM_TEST_FG_RADIUS"); r != nullptr) {
+      opt.htx.foreground_radius = std::stof(r);
+    }
     if (const char* a = std::getenv("DS3D_GEOM_TEST_GATE_ALPHA"); a != nullptr) {
       opt.gate.alpha = std::stod(a);
     }

@@ -20,6 +20,7 @@
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "ds3d/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
@@ -112,6 +113,15 @@ TEST(HtxSource, RejectsBadParamsAndUnknownClasses) {
   EXPECT_THROW(HtxSource(none, names, {.min_score = 1.5F}), ds3d::InvalidArgument);
   EXPECT_THROW(HtxSource(none, names, {.detect_every = 0}), ds3d::InvalidArgument);
   EXPECT_THROW(HtxSource(none, names, {.num_threads = -1}), ds3d::InvalidArgument);
+  EXPECT_THROW(HtxSource(none, names, {.foreground_min_prob = 0.0F}), ds3d::InvalidArgument);
+  EXPECT_THROW(HtxSource(none, names, {.foreground_min_prob = 1.0F}), ds3d::InvalidArgument);
+  EXPECT_THROW(HtxSource(none, names, {.foreground_radius = 0.0F}), ds3d::InvalidArgument);
+  try {
+    HtxSource bad(none, names, {.foreground_radius = std::nanf("")});
+    FAIL() << "expected InvalidArgument";
+  } catch (const ds3d::InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("foreground_radius"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(HtxSource(HtxSource::DetectFn{}, names), ds3d::InvalidArgument);
   try {
     HtxSource s(none, {"chair", "table"});
@@ -357,6 +367,60 @@ TEST(HtxSource, FixtureWeightsRunThroughThePipelineDeterministically) {
   EXPECT_GT(total, 0U) << "the fixture detector kept no box at all";
 }
 
+// The shipped model's part head segments the synthetic walker: with segment (the default) every
+// box comes flagged with the foreground points, which lie on the walker; the boxes are those of
+// a run without segmentation; a source built on a plain DetectFn reports no segmentation.
+TEST(HtxSource, SegmentsTheWalkerWithTheShippedModel) {
+  const fs::path weights = fs::path(DS3D_SOURCE_DIR) / "models" / "htx_lite_fast.safetensors";
+  if (!fs::exists(weights)) GTEST_SKIP() << "no " << weights;
+  const auto det =
+      std::make_shared<const ds3d::SparseDetector>(ds3d::SparseDetector::load(weights));
+  const ds3d::synth::SyntheticScene scene(scene_options(6));
+  const ds3d::PinholeCamera cam = scene.options().camera;
+  HtxSource seg(det);
+  HtxSource plain(det, {.segment = false});
+  HtxSource fn([&](Eigen::Ref<const Points3f> xyz) { return det->detect(xyz); }, {"person"});
+  std::size_t fg_total = 0;
+  std::size_t fg_on = 0;
+  std::size_t boxes = 0;
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const auto fr = scene.render(i);
+    const FrameInput in = to_input(fr);
+    const DynamicObjects a = seg.detect(in, cam);
+    const DynamicObjects b = plain.detect(in, cam);
+    const DynamicObjects c = fn.detect(in, cam);
+    ASSERT_EQ(a.boxes_3d.size(), b.boxes_3d.size()) << i;
+    for (std::size_t k = 0; k < a.boxes_3d.size(); ++k) {
+      EXPECT_TRUE(a.boxes_3d[k].isApprox(b.boxes_3d[k])) << i;
+    }
+    EXPECT_EQ(a.boxes_3d_segmented, std::vector<std::uint8_t>(a.boxes_3d.size(), 1)) << i;
+    EXPECT_EQ(static_cast<std::size_t>(a.foreground_points.rows()),
+              seg.last_stats().num_foreground);
+    EXPECT_FLOAT_EQ(a.foreground_radius, HtxSourceParams{}.foreground_radius);
+    EXPECT_EQ(b.foreground_points.rows(), 0);
+    EXPECT_TRUE(b.boxes_3d_segmented.empty());
+    EXPECT_EQ(c.foreground_points.rows(), 0);
+    EXPECT_TRUE(c.boxes_3d_segmented.empty());
+    boxes += a.boxes_3d.size();
+    // Foreground points project onto the walker (within 3 px: the points are voxel centroids).
+    cv::Mat truth;
+    cv::dilate(fr.dynamic_mask, truth, cv::Mat::ones(7, 7, CV_8U));
+    for (Eigen::Index r = 0; r < a.foreground_points.rows(); ++r) {
+      const Eigen::Vector2d uv = cam.project(a.foreground_points.row(r).transpose().cast<double>());
+      const int u = static_cast<int>(std::lround(uv.x()));
+      const int v = static_cast<int>(std::lround(uv.y()));
+      if (u < 0 || v < 0 || u >= cam.width || v >= cam.height) continue;
+      ++fg_total;
+      fg_on += truth.at<std::uint8_t>(v, u) != 0U ? 1U : 0U;
+    }
+  }
+  std::cout << "htx segmentation: " << fg_on << " of " << fg_total
+            << " foreground points on the walker, " << boxes << " boxes\n";
+  EXPECT_GT(boxes, 0U);
+  EXPECT_GT(fg_total, 50U);
+  EXPECT_GE(static_cast<double>(fg_on), 0.9 * static_cast<double>(fg_total));
+}
+
 TEST(CompositeSource, SecondSourceSeesTheFrameWithoutTheFirstsObjects) {
   struct Fixed final : ds3d::slam::DynamicObjectSource {
     DynamicObjects out;
@@ -410,6 +474,27 @@ TEST(CompositeSource, SecondSourceSeesTheFrameWithoutTheFirstsObjects) {
     EXPECT_TRUE(std::isinf(g.boxes_3d_margin[0]));
     EXPECT_FLOAT_EQ(g.boxes_3d_margin[1], 0.1F);
     EXPECT_TRUE(g.support_plane.has_value());
+  }
+  {
+    // Segmentation: flags stay one per 3-D box (0 for a source without), the foreground points
+    // of the segmenting source come along; no flag set anywhere = no flags at all.
+    auto s = std::make_shared<Fixed>();
+    s->out.boxes_3d.push_back(c);
+    s->out.boxes_3d_segmented.push_back(1);
+    s->out.foreground_points = Points3f::Constant(5, 3, 2.2F);
+    s->out.foreground_radius = 0.3F;
+    const DynamicObjects u = ds3d::slam::CompositeSource(b, s).detect(f, ds3d::PinholeCamera{});
+    ASSERT_EQ(u.boxes_3d.size(), 2U);
+    EXPECT_EQ(u.boxes_3d_segmented, (std::vector<std::uint8_t>{0, 1}));
+    EXPECT_EQ(u.foreground_points.rows(), 5);
+    EXPECT_FLOAT_EQ(u.foreground_radius, 0.3F);
+    const DynamicObjects g = ds3d::slam::MotionGatedSource(s, b).detect(f, ds3d::PinholeCamera{});
+    ASSERT_EQ(g.boxes_3d.size(), 2U);  // the motion box, then the kept semantic box
+    EXPECT_EQ(g.boxes_3d_segmented, (std::vector<std::uint8_t>{0, 1}));
+    EXPECT_EQ(g.foreground_points.rows(), 5);
+    const DynamicObjects p = ds3d::slam::CompositeSource(b, b).detect(f, ds3d::PinholeCamera{});
+    EXPECT_TRUE(p.boxes_3d_segmented.empty());
+    EXPECT_EQ(p.foreground_points.rows(), 0);
   }
 }
 
@@ -670,14 +755,16 @@ TEST(Ds3dSlamCli, HtxOptions) {
   EXPECT_EQ(run_cli(ds + " --dynamic htx --detect-every 0").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic htx --min-score 2").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic geometric --floor").code, 2);  // --floor needs htx
+  EXPECT_EQ(run_cli(ds + " --dynamic geometric --no-segment").code, 2);
   r = run_cli(ds + " --dynamic htx+nothing");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("nothing"), std::string::npos) << r.output;
   // a run with the fixture weights, every 2nd frame, and the composite
   for (const std::string spec : {"htx", "htx+geometric"}) {
     r = run_cli(ds + " --dynamic " + spec + " --weights '" + fixture_weights().string() +
-                "' --detect-every 2 --min-score 0 --floor --quiet --no-threads --out '" +
-                (dir / "traj.txt").string() + "' --stats '" + (dir / "stats.json").string() + "'");
+                "' --detect-every 2 --min-score 0 --floor --quiet --no-threads" +
+                (spec == "htx" ? " --no-segment" : "") + " --out '" + (dir / "traj.txt").string() +
+                "' --stats '" + (dir / "stats.json").string() + "'");
     EXPECT_EQ(r.code, 0) << spec << ": " << r.output;
     const auto stats = ds3d::test::read_json(dir / "stats.json");
     EXPECT_EQ(stats.at("dynamic").as_string(), spec);

@@ -50,7 +50,9 @@ std::vector<cv::Rect2f> rects_from(const char* fn, const py::handle& obj) {
 
 DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores,
                             const py::object& boxes_3d, const py::object& pixel_mask,
-                            const py::object& boxes_3d_margin, const py::object& support_plane) {
+                            const py::object& boxes_3d_margin, const py::object& support_plane,
+                            const py::object& foreground_points,
+                            const py::object& boxes_3d_segmented, float foreground_radius) {
   constexpr const char* fn = "ds3d.DynamicObjects";
   DynamicObjects o;
   if (!boxes_2d.is_none()) o.boxes_2d = rects_from(fn, boxes_2d);
@@ -104,6 +106,31 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
                ": support_plane must be finite with a non-zero normal");
     o.support_plane = q;
   }
+  if (!foreground_points.is_none()) {
+    const auto a =
+        py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(foreground_points);
+    DS3D_CHECK(a && a.ndim() == 2 && a.shape(1) == 3, fn,
+               ": foreground_points must be an (N, 3) array of camera-frame points [m] (got ",
+               pu::describe(foreground_points), ")");
+    o.foreground_points.resize(a.shape(0), 3);
+    const auto r = a.unchecked<2>();
+    for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+      for (int j = 0; j < 3; ++j) o.foreground_points(i, j) = r(i, j);
+    }
+  }
+  if (!boxes_3d_segmented.is_none()) {
+    const auto a =
+        py::array_t<bool, py::array::c_style | py::array::forcecast>::ensure(boxes_3d_segmented);
+    DS3D_CHECK(a && a.ndim() == 1 && static_cast<std::size_t>(a.shape(0)) == o.boxes_3d.size(), fn,
+               ": boxes_3d_segmented must be a (K,) bool array, one per 3-D box (got ",
+               pu::describe(boxes_3d_segmented), " for ", o.boxes_3d.size(), " boxes)");
+    for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+      o.boxes_3d_segmented.push_back(a.at(i) ? 1 : 0);
+    }
+  }
+  DS3D_CHECK(std::isfinite(foreground_radius) && foreground_radius > 0.0F, fn,
+             ": foreground_radius must be finite and > 0 (got ", foreground_radius, ")");
+  o.foreground_radius = foreground_radius;
   if (!pixel_mask.is_none()) {
     const auto m = pu::exact<std::uint8_t>(fn, "pixel_mask", pixel_mask, "an (H, W) uint8 array");
     DS3D_CHECK(m.ndim() == 2, fn, ": pixel_mask must be an (H, W) uint8 array (got ",
@@ -157,12 +184,17 @@ void bind_dynamic_sources(py::module_& m) {
       m, "DynamicObjects",
       "What a dynamic-object source found in one frame (include/ds3d/slam_frontend.hpp).\n"
       "DynamicObjects(boxes_2d=None, scores=None, boxes_3d=None, pixel_mask=None,\n"
-      "boxes_3d_margin=None, support_plane=None) builds one from\n"
-      "your own detector's output (ValueError on bad shapes, non-finite values, inverted boxes).")
+      "boxes_3d_margin=None, support_plane=None, foreground_points=None,\n"
+      "boxes_3d_segmented=None, foreground_radius=0.2) builds one from\n"
+      "your own detector's output (ValueError on bad shapes, non-finite values, inverted boxes).\n"
+      "foreground_points (N, 3) [m, camera frame] and boxes_3d_segmented (K,) bool: a segmenting\n"
+      "detector's points on its objects; the masker keeps the dynamic keypoints of a flagged box\n"
+      "only within foreground_radius [m] of one (ds3d.HdbscanMasker).")
       .def(py::init(&objects_from), py::arg("boxes_2d") = py::none(),
            py::arg("scores") = py::none(), py::arg("boxes_3d") = py::none(),
            py::arg("pixel_mask") = py::none(), py::arg("boxes_3d_margin") = py::none(),
-           py::arg("support_plane") = py::none())
+           py::arg("support_plane") = py::none(), py::arg("foreground_points") = py::none(),
+           py::arg("boxes_3d_segmented") = py::none(), py::arg("foreground_radius") = 0.2F)
       .def_property_readonly(
           "boxes_2d",
           [](const DynamicObjects& o) {
@@ -211,6 +243,25 @@ void bind_dynamic_sources(py::module_& m) {
             return py::cast(Eigen::Vector4f(*o.support_plane));
           },
           "(4,) floor plane (a, b, c, d) in the camera frame, or None.")
+      .def_property_readonly(
+          "foreground_points",
+          [](const DynamicObjects& o) { return ds3d::Points3f(o.foreground_points); },
+          "(N, 3) float32 points segmented as on the objects [m, camera frame] (htx with "
+          "segment), or (0, 3).")
+      .def_property_readonly(
+          "boxes_3d_segmented",
+          [](const DynamicObjects& o) {
+            py::array_t<bool> a(static_cast<py::ssize_t>(o.boxes_3d_segmented.size()));
+            for (std::size_t i = 0; i < o.boxes_3d_segmented.size(); ++i) {
+              a.mutable_at(static_cast<py::ssize_t>(i)) = o.boxes_3d_segmented[i] != 0U;
+            }
+            return a;
+          },
+          "(K,) bool per 3-D box: its dynamic keypoints are confirmed against foreground_points; "
+          "or empty.")
+      .def_property_readonly(
+          "foreground_radius", [](const DynamicObjects& o) { return o.foreground_radius; },
+          "largest keypoint-to-foreground-point distance [m] for the segmentation check.")
       .def_property_readonly(
           "pixel_mask",
           [](const DynamicObjects& o) -> py::object {
@@ -322,25 +373,28 @@ void bind_dynamic_sources(py::module_& m) {
   m.def(
       "make_dynamic_source",
       [](const std::string& spec, const py::object& weights, int detect_every,
-         std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor) {
+         std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor,
+         bool segment) {
         ds3d::slam::DynamicSourceOptions o;
         o.weights = pu::path_from(weights);
         o.htx.detect_every = detect_every;
         if (min_score) o.htx.min_score = *min_score;
         if (box_uncertainty) o.htx.box_uncertainty = *box_uncertainty;
         o.htx.report_floor = report_floor;
+        o.htx.segment = segment;
         return ds3d::slam::make_dynamic_source(spec, o);
       },
       py::arg("spec"), py::arg("weights") = "", py::arg("detect_every") = 1,
       py::arg("min_score") = py::none(), py::arg("box_uncertainty") = py::none(),
-      py::arg("report_floor") = false,
+      py::arg("report_floor") = false, py::arg("segment") = true,
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric'), 'A&B' (A's boxes only where B sees\n"
       "motion, e.g. 'htx&geometric') or 'A&&geometric' (A's boxes where the geometric source's\n"
       "raw evidence inside them is significant, tracked; docs/dynamic.md, session 9);\n"
       "weights = htx weights file ('' = the default model), "
       "detect_every\n"
-      ">= 1, min_score in [0, 1] and box_uncertainty [m] (>= 0 or inf) and report_floor for htx. "
+      ">= 1, min_score in [0, 1] and box_uncertainty [m] (>= 0 or inf), report_floor and segment\n"
+      "(the part head's foreground confirms the boxes' keypoints; default on) for htx. "
       "ValueError for\n"
       "an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");
