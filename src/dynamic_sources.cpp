@@ -21,6 +21,15 @@
 
 namespace ds3d::slam {
 
+namespace {
+
+// True when `m` is a non-empty image of `type` and of the camera's size.
+bool camera_image(const cv::Mat& m, int type, const PinholeCamera& camera) {
+  return !m.empty() && m.type() == type && m.cols == camera.width && m.rows == camera.height;
+}
+
+}  // namespace
+
 void FileSourceParams::validate() const {
   DS3D_CHECK(std::isfinite(max_dt) && max_dt >= 0.0,
              "ds3d::slam::FileSourceParams: max_dt must be >= 0 (got ", max_dt, ")");
@@ -101,8 +110,7 @@ std::vector<ImageBox> image_boxes(const DynamicObjects& objects, const PinholeCa
 
 Keypoints3f keypoint_array(const OrbFeatures& features, const cv::Mat& depth,
                            const PinholeCamera& camera) {
-  const bool raw = !depth.empty() && depth.type() == CV_16UC1 && depth.cols == camera.width &&
-                   depth.rows == camera.height;
+  const bool raw = camera_image(depth, CV_16UC1, camera);
   Keypoints3f kp(static_cast<Eigen::Index>(features.size()), 3);
   for (std::size_t i = 0; i < features.size(); ++i) {
     const auto r = static_cast<Eigen::Index>(i);
@@ -132,7 +140,7 @@ std::vector<std::uint8_t> HdbscanMasker::mask(const FrameInput& frame, const Pin
   added_ = 0;
   confirm_foreground(frame, camera, kp, objects, out);
   const cv::Mat& m = objects.pixel_mask;
-  if (!m.empty() && m.type() == CV_8UC1 && m.cols == camera.width && m.rows == camera.height) {
+  if (camera_image(m, CV_8UC1, camera)) {
     for (std::size_t i = 0; i < features.size(); ++i) {
       const cv::Point2f& p = features.keypoints[i].pt;
       const int x = std::clamp(static_cast<int>(std::lround(p.x)), 0, camera.width - 1);
@@ -192,8 +200,7 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
     return d2 <= r2;
   };
   const cv::Mat& depth = frame.depth;
-  const bool raw = !depth.empty() && depth.type() == CV_16UC1 && depth.cols == camera.width &&
-                   depth.rows == camera.height;
+  const bool raw = camera_image(depth, CV_16UC1, camera);
   std::vector<std::uint16_t> window;
   for (std::size_t i = 0; i < out.size(); ++i) {
     const auto r = static_cast<Eigen::Index>(i);
@@ -449,8 +456,7 @@ DynamicObjects CompositeSource::detect(const FrameInput& frame, const PinholeCam
   FrameInput rest = frame;
   const std::vector<ImageBox> boxes = image_boxes(out, camera);
   const cv::Mat& m = out.pixel_mask;
-  const bool has_mask =
-      !m.empty() && m.type() == CV_8UC1 && m.cols == camera.width && m.rows == camera.height;
+  const bool has_mask = camera_image(m, CV_8UC1, camera);
   if (!frame.depth.empty() && (!boxes.empty() || has_mask)) {
     rest.depth = frame.depth.clone();  // the caller's image is shared: never write into it
     const cv::Rect image(0, 0, rest.depth.cols, rest.depth.rows);
@@ -572,8 +578,7 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
   const std::size_t now = frame_count_;
   const std::vector<ImageBox> moving = image_boxes(out, camera);
   const cv::Mat& m = out.pixel_mask;
-  const bool has_mask =
-      !m.empty() && m.type() == CV_8UC1 && m.cols == camera.width && m.rows == camera.height;
+  const bool has_mask = camera_image(m, CV_8UC1, camera);
   const cv::Rect image(0, 0, camera.width, camera.height);
   // One semantic box (as the image box image_boxes() makes of it) against the motion evidence.
   const auto gate = [&](const ImageBox& b) {
@@ -621,8 +626,7 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
   const auto* geo = dynamic_cast<const GeometricMotionSource*>(motion_.get());
   if (params_.evidence && geo != nullptr && !boxes.empty()) {
     const float noise = geo->params().depth_noise;
-    const bool raw_depth = !frame.depth.empty() && frame.depth.type() == CV_16UC1 &&
-                           frame.depth.cols == camera.width && frame.depth.rows == camera.height;
+    const bool raw_depth = camera_image(frame.depth, CV_16UC1, camera);
     const auto depth_at = [&](float u, float v) {
       if (!raw_depth) return 0.0F;
       const int x = std::clamp(static_cast<int>(std::lround(u)), 0, camera.width - 1);

@@ -40,17 +40,10 @@ inline double no_contract(double p) {
 }
 
 #if defined(__SSE2__)
-/// no_contract() for two packed doubles: keeps each product a separate rounding (no FMA).
-inline __m128d no_contract_v(__m128d v) {
-#if defined(__FMA__) && defined(__GNUC__)
-  asm("" : "+x"(v));
-#endif
-  return v;
-}
-#endif
-#if defined(__AVX2__)
-/// no_contract() for four packed doubles.
-inline __m256d no_contract256(__m256d v) {
+/// no_contract() for packed doubles in an SSE or AVX register (__m128d, __m256d): keeps each
+/// product a separate rounding (no FMA).
+template <class V>
+inline V no_contract_simd(V v) {
 #if defined(__FMA__) && defined(__GNUC__)
   asm("" : "+x"(v));
 #endif
@@ -484,9 +477,9 @@ class KnnTreeSmall {
         const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(xs + v), qx);
         const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(ys + v), qy);
         const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(zs + v), qz);
-        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
-        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
-        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+        __m256d d2 = no_contract_simd(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract_simd(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract_simd(_mm256_mul_pd(dz, dz)));
         _mm256_storeu_pd(buf + v, d2);
         bits |= static_cast<std::uint32_t>(_mm256_movemask_pd(_mm256_cmp_pd(d2, w, _CMP_LT_OQ)))
                 << v;

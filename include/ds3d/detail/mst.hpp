@@ -129,9 +129,9 @@ inline std::size_t prim_step_3d_sse2(PrimSoA& s, const double* c, double cc2, do
     const __m128d dx = _mm_sub_pd(_mm_loadu_pd(x + t), cx);
     const __m128d dy = _mm_sub_pd(_mm_loadu_pd(y + t), cy);
     const __m128d dz = _mm_sub_pd(_mm_loadu_pd(z + t), cz);
-    __m128d d2 = no_contract_v(_mm_mul_pd(dx, dx));
-    d2 = _mm_add_pd(d2, no_contract_v(_mm_mul_pd(dy, dy)));
-    d2 = _mm_add_pd(d2, no_contract_v(_mm_mul_pd(dz, dz)));
+    __m128d d2 = no_contract_simd(_mm_mul_pd(dx, dx));
+    d2 = _mm_add_pd(d2, no_contract_simd(_mm_mul_pd(dy, dy)));
+    d2 = _mm_add_pd(d2, no_contract_simd(_mm_mul_pd(dz, dz)));
     const __m128d lo = _mm_max_pd(_mm_loadu_pd(core2 + t), vcc);
     const __m128d m2 = _mm_max_pd(lo, d2);
     const __m128d k = _mm_loadu_pd(key + t);
@@ -727,9 +727,9 @@ class BoruvkaKdTree {
         const __m256d dx = _mm256_sub_pd(_mm256_loadu_pd(xs + v), qx);
         const __m256d dy = _mm256_sub_pd(_mm256_loadu_pd(ys + v), qy);
         const __m256d dz = _mm256_sub_pd(_mm256_loadu_pd(zs + v), qz);
-        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
-        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
-        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+        __m256d d2 = no_contract_simd(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract_simd(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract_simd(_mm256_mul_pd(dz, dz)));
         _mm256_storeu_pd(buf + v, d2);
         const __m256d hit =
             kLe ? _mm256_cmp_pd(d2, w, _CMP_LE_OQ) : _mm256_cmp_pd(d2, w, _CMP_LT_OQ);
@@ -991,9 +991,9 @@ class BoruvkaKdTree {
           _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 2), qz),
                                       _mm256_sub_pd(qz, _mm256_broadcast_sd(hi + 2))),
                         zero);
-      __m256d s = no_contract256(_mm256_mul_pd(gx, gx));
-      s = _mm256_add_pd(s, no_contract256(_mm256_mul_pd(gy, gy)));
-      return _mm256_add_pd(s, no_contract256(_mm256_mul_pd(gz, gz)));
+      __m256d s = no_contract_simd(_mm256_mul_pd(gx, gx));
+      s = _mm256_add_pd(s, no_contract_simd(_mm256_mul_pd(gy, gy)));
+      return _mm256_add_pd(s, no_contract_simd(_mm256_mul_pd(gz, gz)));
     };
     auto keep = [&](__m256d b2) {
       return _mm256_movemask_pd(_mm256_cmp_pd(b2, v[kL - 1], _CMP_LE_OQ)) != 0;
@@ -1005,9 +1005,9 @@ class BoruvkaKdTree {
         const __m256d dx = _mm256_sub_pd(_mm256_broadcast_sd(p), qx);
         const __m256d dy = _mm256_sub_pd(_mm256_broadcast_sd(p + 1), qy);
         const __m256d dz = _mm256_sub_pd(_mm256_broadcast_sd(p + 2), qz);
-        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
-        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
-        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+        __m256d d2 = no_contract_simd(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract_simd(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract_simd(_mm256_mul_pd(dz, dz)));
 #pragma GCC unroll 16
         for (int i = kL - 1; i > 0; --i) v[i] = _mm256_min_pd(v[i], _mm256_max_pd(v[i - 1], d2));
         v[0] = _mm256_min_pd(v[0], d2);
@@ -1205,9 +1205,9 @@ class BoruvkaKdTree {
           _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(_mm256_broadcast_sd(lo + 2), qz),
                                       _mm256_sub_pd(qz, _mm256_broadcast_sd(hi + 2))),
                         zero);
-      __m256d b2 = no_contract256(_mm256_mul_pd(gx, gx));
-      b2 = _mm256_add_pd(b2, no_contract256(_mm256_mul_pd(gy, gy)));
-      b2 = _mm256_add_pd(b2, no_contract256(_mm256_mul_pd(gz, gz)));
+      __m256d b2 = no_contract_simd(_mm256_mul_pd(gx, gx));
+      b2 = _mm256_add_pd(b2, no_contract_simd(_mm256_mul_pd(gy, gy)));
+      b2 = _mm256_add_pd(b2, no_contract_simd(_mm256_mul_pd(gz, gz)));
       const __m256d lb = _mm256_max_pd(vcs, _mm256_set1_pd(nd.min_core));
       const __m256d can =
           _mm256_and_pd(_mm256_cmp_pd(b2, vrs, _CMP_LE_OQ), _mm256_cmp_pd(lb, bw, _CMP_LT_OQ));
@@ -1217,9 +1217,9 @@ class BoruvkaKdTree {
         const __m256d dx = _mm256_sub_pd(_mm256_broadcast_sd(p), qx);
         const __m256d dy = _mm256_sub_pd(_mm256_broadcast_sd(p + 1), qy);
         const __m256d dz = _mm256_sub_pd(_mm256_broadcast_sd(p + 2), qz);
-        __m256d d2 = no_contract256(_mm256_mul_pd(dx, dx));
-        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dy, dy)));
-        d2 = _mm256_add_pd(d2, no_contract256(_mm256_mul_pd(dz, dz)));
+        __m256d d2 = no_contract_simd(_mm256_mul_pd(dx, dx));
+        d2 = _mm256_add_pd(d2, no_contract_simd(_mm256_mul_pd(dy, dy)));
+        d2 = _mm256_add_pd(d2, no_contract_simd(_mm256_mul_pd(dz, dz)));
         const __m256d tv = _mm256_set1_pd(static_cast<double>(t));
         const __m256d w = _mm256_max_pd(vcs, _mm256_set1_pd(core_[t]));
         const __m256d take = _mm256_and_pd(
@@ -1602,7 +1602,7 @@ class BoruvkaKdTree {
       const __m256d a = _mm256_sub_pd(_mm256_maskload_pd(lo, m3), vq);
       const __m256d b = _mm256_sub_pd(vq, _mm256_maskload_pd(hi, m3));
       const __m256d g = _mm256_max_pd(_mm256_max_pd(a, b), _mm256_setzero_pd());
-      const __m256d g2 = no_contract256(_mm256_mul_pd(g, g));
+      const __m256d g2 = no_contract_simd(_mm256_mul_pd(g, g));
       const __m128d g01 = _mm256_castpd256_pd128(g2);
       double s = 0.0 + _mm_cvtsd_f64(g01);
       s += _mm_cvtsd_f64(_mm_unpackhi_pd(g01, g01));
@@ -1640,7 +1640,7 @@ class BoruvkaKdTree {
         const __m256d hi = _mm256_maskload_pd(hi_.data() + k * 3, m3);
         const __m256d g =
             _mm256_max_pd(_mm256_max_pd(_mm256_sub_pd(lo, vq), _mm256_sub_pd(vq, hi)), zero);
-        return no_contract256(_mm256_mul_pd(g, g));
+        return no_contract_simd(_mm256_mul_pd(g, g));
       };
       const __m256d h = _mm256_hadd_pd(gap2(a), gap2(b));  // [a0+a1, b0+b1, a2+0, b2+0]
       const __m128d sum = _mm_add_pd(_mm256_castpd256_pd128(h), _mm256_extractf128_pd(h, 1));
