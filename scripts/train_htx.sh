@@ -2,7 +2,8 @@
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
 # The HTx-lite training recipe of docs/htx_training.md, end to end, on CPU:
-#   data (synthetic humanoids) -> training (resumable) -> threshold on val -> evaluation -> export.
+#   data (synthetic humanoids) -> training (resumable) -> threshold on val -> export -> part-head
+#   fine-tune on per-pixel labels -> evaluation.
 # Usage: scripts/train_htx.sh [WORK_DIR]   (default /work/htx_data; keep it outside git)
 # Environment: BUILD (default build), THREADS (torch threads per run, default 1), NICE (default 10),
 #   TRAIN_FRAMES per seed (default 1500, two seeds), STEPS (default 2500), BATCH (default 4),
@@ -48,6 +49,9 @@ THR=$(${PY} -m ds3d.htx.evaluate threshold --model "${WORK}/runs/main/checkpoint
       ${PY} -c 'import json,sys; print(json.load(sys.stdin)["result"]["threshold"])')
 ${PY} -m ds3d.htx.train export --checkpoint "${WORK}/runs/main/checkpoint.pt" --threshold "${THR}" \
   --out models/htx_lite_fast.safetensors
+# 3b. the part head re-fitted on per-pixel human labels, the rest frozen (session 11; boxes unchanged)
+${PY} -m ds3d.htx.finetune_part --model models/htx_lite_fast.safetensors --data "${WORK}/train" \
+  --out models/htx_lite_fast.safetensors --threads "${THREADS}"
 ${PY} -m ds3d.htx.evaluate synthetic --model models/htx_lite_fast.safetensors --data "${WORK}/test" \
   --json "${WORK}/eval_synthetic.json"
 ${PY} -m ds3d.htx.evaluate tum --model models/htx_lite_fast.safetensors \

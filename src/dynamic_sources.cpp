@@ -189,6 +189,15 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
   }
   const detail::KdTreeCloudAdaptor<Points3f> adaptor{objects.foreground_points, &finite_rows};
   detail::KdTree3f<Points3f> tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  // The finite background points, when the source gives them (nearest-neighbour label transfer).
+  std::vector<std::uint32_t> bg_rows;
+  for (Eigen::Index r = 0; r < objects.background_points.rows(); ++r) {
+    if (objects.background_points.row(r).allFinite()) {
+      bg_rows.push_back(static_cast<std::uint32_t>(r));
+    }
+  }
+  const detail::KdTreeCloudAdaptor<Points3f> bg_adaptor{objects.background_points, &bg_rows};
+  detail::KdTree3f<Points3f> bg_tree(3, bg_adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   const double r2 = static_cast<double>(objects.foreground_radius) *
                     static_cast<double>(objects.foreground_radius);
   const auto on_segment = [&](float u, float v, double z) {
@@ -197,7 +206,12 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
     std::uint32_t index = 0;
     double d2 = 0.0;
     tree.knnSearch(q.data(), 1, &index, &d2);
-    return d2 <= r2;
+    if (d2 > r2) return false;
+    if (bg_rows.empty()) return true;
+    // Nearest-neighbour label transfer: the nearest segmented point must be a foreground one.
+    double bg_d2 = 0.0;
+    bg_tree.knnSearch(q.data(), 1, &index, &bg_d2);
+    return d2 <= bg_d2;
   };
   const cv::Mat& depth = frame.depth;
   const bool raw = camera_image(depth, CV_16UC1, camera);
@@ -374,14 +388,19 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     const double p = params_.foreground_min_prob;
     const auto min_logit = static_cast<float>(std::log(p / (1.0 - p)));
     std::vector<Eigen::Index> fg;
+    std::vector<Eigen::Index> bg;
     for (Eigen::Index k = 0; k < o.part_logits.rows(); ++k) {
-      if (o.part_logits(k, 0) > min_logit) fg.push_back(k);
+      (o.part_logits(k, 0) > min_logit ? fg : bg).push_back(k);
     }
-    last_objects_.foreground_points.resize(static_cast<Eigen::Index>(fg.size()), 3);
-    for (std::size_t k = 0; k < fg.size(); ++k) {
-      last_objects_.foreground_points.row(static_cast<Eigen::Index>(k)) =
-          pre.points.row(static_cast<Eigen::Index>(in.rows[static_cast<std::size_t>(fg[k])]));
-    }
+    const auto gather = [&](const std::vector<Eigen::Index>& rows, Points3f& to) {
+      to.resize(static_cast<Eigen::Index>(rows.size()), 3);
+      for (std::size_t k = 0; k < rows.size(); ++k) {
+        to.row(static_cast<Eigen::Index>(k)) =
+            pre.points.row(static_cast<Eigen::Index>(in.rows[static_cast<std::size_t>(rows[k])]));
+      }
+    };
+    gather(fg, last_objects_.foreground_points);
+    gather(bg, last_objects_.background_points);
     last_objects_.foreground_radius = params_.foreground_radius;
     stats_.num_foreground = fg.size();
   } else {
@@ -432,6 +451,9 @@ void merge_segmentation(DynamicObjects& to, std::vector<std::uint8_t> flags,
         n == 0 ? from.foreground_radius : std::max(to.foreground_radius, from.foreground_radius);
     to.foreground_points.conservativeResize(n + from.foreground_points.rows(), 3);
     to.foreground_points.bottomRows(from.foreground_points.rows()) = from.foreground_points;
+    const Eigen::Index m = to.background_points.rows();
+    to.background_points.conservativeResize(m + from.background_points.rows(), 3);
+    to.background_points.bottomRows(from.background_points.rows()) = from.background_points;
   }
   if (std::none_of(flags.begin(), flags.end(), [](std::uint8_t f) { return f != 0U; })) {
     flags.clear();

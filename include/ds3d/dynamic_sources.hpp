@@ -67,12 +67,15 @@ class FileSource final : public DynamicObjectSource {
 /// **Segmented boxes** (DynamicObjects::boxes_3d_segmented, e.g. HtxSource with segment): after
 /// the filter, a dynamic keypoint that lies in no unsegmented box's image rectangle stays
 /// dynamic only if its 3-D point (camera back-projection of its pixel and depth) lies within
-/// DynamicObjects::foreground_radius of a foreground point. A keypoint without depth inside a
+/// DynamicObjects::foreground_radius of a foreground point and, when the source also gives
+/// DynamicObjects::background_points, that foreground point is no farther than the nearest
+/// background point (nearest-neighbour label transfer). A keypoint without depth inside a
 /// segmented box's rectangle takes the median of the valid depths in the
 /// (2·kForegroundWindow + 1)² pixels around it (depth holes fringe object silhouettes) and is
 /// dynamic exactly when that point passes the same test (no valid depth there: static).
 /// So the box filter proposes and the segmentation confirms: furniture in a person's box,
-/// false boxes without foreground, and floor at the feet stay static.
+/// false boxes without foreground, floor at the feet and (with background points) the seat
+/// under a seated person's thighs stay static.
 class HdbscanMasker final : public DynamicFeatureMasker {
  public:
   /// @throws ds3d::InvalidArgument on bad params.
@@ -137,8 +140,10 @@ struct HtxSourceParams {
   bool report_floor = false;
   /// Run the detector's Part-A2 part head on every input point and report the points it
   /// segments as foreground (probability > foreground_min_prob) as
-  /// DynamicObjects::foreground_points, with every box flagged in boxes_3d_segmented: the masker
-  /// then keeps a box's dynamic keypoint only on that segment (docs/dynamic.md, session 10).
+  /// DynamicObjects::foreground_points and the other input points as background_points, with
+  /// every box flagged in boxes_3d_segmented: the masker then keeps a box's dynamic keypoint only
+  /// when its nearest segmented point is a foreground one within foreground_radius
+  /// (docs/dynamic.md, sessions 10 and 11).
   /// Needs the SparseDetector constructor (a DetectFn gives no segmentation; ignored then).
   bool segment = true;
   float foreground_min_prob = 0.5F;  ///< foreground decision on the part head's sigmoid, (0, 1)

@@ -75,6 +75,13 @@ struct DynamicObjects {
   /// keypoint's 3-D point lies within foreground_radius of one of these points (see
   /// HdbscanMasker). Non-finite rows are ignored.
   Points3f foreground_points;
+  /// Points the same segmentation put off the objects [m, camera frame] (e.g. HtxSource's other
+  /// input points), or empty. When given, a keypoint counts as on the segment only if, besides
+  /// lying within foreground_radius of a foreground point, its nearest foreground point is no
+  /// farther than its nearest background point (nearest-neighbour label transfer): a seat under
+  /// a seated person's thighs is then not confirmed by the thigh points next to it. Non-finite
+  /// rows are ignored.
+  Points3f background_points;
   /// One per boxes_3d entry, or empty (= none): non-zero = the box comes with the segmentation
   /// in foreground_points, so its dynamic keypoints are confirmed against it.
   std::vector<std::uint8_t> boxes_3d_segmented;

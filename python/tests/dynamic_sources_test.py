@@ -234,6 +234,8 @@ def test_segmentation_fields_and_the_masker_check():
     off = ds3d.make_dynamic_source("htx", weights=weights, segment=False)
     o2 = off.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
     assert len(o2.foreground_points) == 0 and len(o2.boxes_3d_segmented) == 0
+    bg = o.background_points  # the other input points of the network
+    assert bg.shape[1] == 3 and len(bg) > len(fg) and len(o2.background_points) == 0
     assert np.allclose(o2.boxes_3d, o.boxes_3d)
     # The masker: the same box with no foreground near the walker keeps everything static.
     feats = ds3d.OrbExtractor().extract(f["rgb"], f["depth"], CAM)
@@ -256,5 +258,17 @@ def test_segmentation_fields_and_the_masker_check():
         ds3d.DynamicObjects(boxes_3d=o.boxes_3d, boxes_3d_segmented=[True] * (len(o.boxes_3d) + 1))
     with pytest.raises(ValueError, match="foreground_points"):
         ds3d.DynamicObjects(foreground_points=np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="background_points"):
+        ds3d.DynamicObjects(background_points=np.zeros((3, 4)))
+    # Background points right on the foreground points: every tie goes to the foreground
+    # (nearest foreground no farther than nearest background), so the radius alone decides.
+    kw = dict(boxes_3d=o.boxes_3d, boxes_3d_margin=o.boxes_3d_margin, foreground_points=fg,
+              boxes_3d_segmented=np.ones(len(o.boxes_3d), bool))
+    radius_only = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, ds3d.DynamicObjects(**kw), CAM)
+    tie = ds3d.DynamicObjects(background_points=fg, **kw)
+    assert tie.background_points.shape == fg.shape
+    assert (ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, tie, CAM) == radius_only).all()
+    # The network's own background points can only take keypoints away.
+    assert not (with_fg & ~radius_only).any()
     with pytest.raises(ValueError, match="foreground_radius"):
         ds3d.DynamicObjects(foreground_radius=0.0)

@@ -163,8 +163,9 @@ TEST(HdbscanMasker, MarksKeypointsOnTheBoxedPersonAndOnTheMask) {
 // A person (slab at 1.5 m, u 250-310) with a chair at the same depth right beside it (u 311-420)
 // in front of a wall at 3 m: one 3-D box holds both, so the box filter's foreground cluster
 // takes the chair too. With the box flagged as segmented and the person's pixels as foreground
-// points, only the person (and chair keypoints within foreground_radius of it) stays dynamic;
-// depth holes on the person's edge become dynamic, holes on the chair's far edge do not.
+// points, only the person (and chair keypoints within foreground_radius of it, unless the
+// chair's points come as background points) stays dynamic; depth holes on the person's edge
+// become dynamic, holes on the chair's far edge do not.
 TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
   const ds3d::PinholeCamera cam;
   cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(15000));     // wall, 3 m
@@ -243,6 +244,32 @@ TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
       EXPECT_EQ(m[i], 0) << "above the box";
     }
   }
+
+  // The chair's own points as background: nearest-neighbour label transfer drops the chair
+  // keypoints within foreground_radius of the person too (the seat under a seated person's
+  // thighs), and keeps every person keypoint.
+  const auto on_chair_near = [&](std::size_t i) {
+    return feats.keypoints[i].pt.x >= 322.0F && feats.keypoints[i].pt.x <= 380.0F &&
+           feats.keypoints[i].pt.y > 90.0F;
+  };
+  EXPECT_GT(count(m, on_chair_near).first, 0) << "without background the radius alone decides";
+  std::vector<Eigen::Vector3f> bg;
+  for (int v = 80; v < 480; v += 8) {
+    for (int u = 318; u <= 420; u += 8) bg.push_back(cam.back_project(u, v, 1.5).cast<float>());
+  }
+  DynamicObjects with_bg = obj;
+  with_bg.background_points.resize(static_cast<Eigen::Index>(bg.size()), 3);
+  for (std::size_t k = 0; k < bg.size(); ++k) {
+    with_bg.background_points.row(static_cast<Eigen::Index>(k)) = bg[k].transpose();
+  }
+  with_bg.background_points.row(0).setConstant(std::nanf(""));  // ignored
+  ds3d::slam::HdbscanMasker nn;
+  const auto m_nn = nn.mask(f, cam, feats, with_bg);
+  EXPECT_EQ(count(m_nn, on_person).first, person_n);
+  EXPECT_EQ(count(m_nn, on_chair_near).first, 0);
+  EXPECT_EQ(count(m_nn, on_chair_far).first, 0);
+  EXPECT_EQ(m_nn[grid], 1);
+  EXPECT_EQ(m_nn[grid + 1], 0);
 
   // An unsegmented 2-D box over the chair: its keypoints are not checked.
   DynamicObjects both = obj;

@@ -16,7 +16,11 @@
 // HtxSourceParams::report_floor (off by default), DS3D_GEOM_TEST_NO_PLANE=1 drops any support
 // plane of the source before the masker, DS3D_GEOM_TEST_NO_SEGMENT=1 sets
 // HtxSourceParams::segment = false (no part-head confirmation, as before session 10),
-// DS3D_GEOM_TEST_FG_RADIUS=M sets HtxSourceParams::foreground_radius.
+// DS3D_GEOM_TEST_FG_RADIUS=M sets HtxSourceParams::foreground_radius (and the oracle's radius),
+// DS3D_GEOM_TEST_WEIGHTS=PATH the HTx weights file. Session 11: DS3D_GEOM_TEST_NO_BACKGROUND=1
+// drops DynamicObjects::background_points (the radius rule alone, as in session 10), and
+// DS3D_GEOM_TEST_ORACLE_FG=1 replaces the segmentation by the generator's mask (every 4th pixel
+// with depth, on the mask = foreground, else background), the ceiling of the segmented masker.
 #include "ds3d/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
@@ -95,6 +99,7 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
       opt.htx.box_uncertainty = std::stof(u);
     }
     opt.htx.report_floor = std::getenv("DS3D_GEOM_TEST_FLOOR") != nullptr;
+    if (const char* w = std::getenv("DS3D_GEOM_TEST_WEIGHTS"); w != nullptr) opt.weights = w;
     opt.htx.segment = std::getenv("DS3D_GEOM_TEST_NO_SEGMENT") == nullptr;
     if (const char* r = std::getenv("DS3D_GEOM_TEST_FG_RADIUS"); r != nullptr) {
       opt.htx.foreground_radius = std::stof(r);
@@ -120,6 +125,29 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
     const Frame f = get(i);
     auto obj = other ? other->detect(f.input, cam) : src.detect(f.input, cam);
     if (drop_plane) obj.support_plane.reset();
+    if (std::getenv("DS3D_GEOM_TEST_NO_BACKGROUND") != nullptr) obj.background_points.resize(0, 3);
+    if (std::getenv("DS3D_GEOM_TEST_ORACLE_FG") != nullptr && !f.truth.empty()) {
+      std::vector<Eigen::Vector3f> pts[2];
+      for (int y = 0; y < f.truth.rows; y += 4) {
+        for (int x = 0; x < f.truth.cols; x += 4) {
+          const auto d = f.input.depth.at<std::uint16_t>(y, x);
+          if (d == 0U) continue;
+          pts[f.truth.at<std::uint8_t>(y, x) != 0U ? 1 : 0].push_back(
+              cam.back_project(x, y, d / cam.depth_scale).cast<float>());
+        }
+      }
+      for (int w = 0; w < 2; ++w) {
+        auto& to = w == 1 ? obj.foreground_points : obj.background_points;
+        to.resize(static_cast<Eigen::Index>(pts[w].size()), 3);
+        for (std::size_t k = 0; k < pts[w].size(); ++k) {
+          to.row(static_cast<Eigen::Index>(k)) = pts[w][k].transpose();
+        }
+      }
+      obj.boxes_3d_segmented.assign(obj.boxes_3d.size(), 1);
+      if (const char* r = std::getenv("DS3D_GEOM_TEST_FG_RADIUS"); r != nullptr) {
+        obj.foreground_radius = std::stof(r);
+      }
+    }
     const auto feats = orb.extract(f.input.rgb, f.input.depth, cam);
     const auto m = masker.mask(f.input, cam, feats, obj);
     if (trace) {

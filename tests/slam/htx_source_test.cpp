@@ -383,6 +383,8 @@ TEST(HtxSource, SegmentsTheWalkerWithTheShippedModel) {
   std::size_t fg_total = 0;
   std::size_t fg_on = 0;
   std::size_t boxes = 0;
+  std::size_t inner_fg = 0;
+  std::size_t inner_bg = 0;
   for (std::size_t i = 0; i < scene.size(); ++i) {
     const auto fr = scene.render(i);
     const FrameInput in = to_input(fr);
@@ -397,7 +399,11 @@ TEST(HtxSource, SegmentsTheWalkerWithTheShippedModel) {
     EXPECT_EQ(static_cast<std::size_t>(a.foreground_points.rows()),
               seg.last_stats().num_foreground);
     EXPECT_FLOAT_EQ(a.foreground_radius, HtxSourceParams{}.foreground_radius);
+    EXPECT_GT(a.background_points.rows(), 0) << i;
+    EXPECT_LE(a.foreground_points.rows() + a.background_points.rows(),
+              static_cast<Eigen::Index>(ds3d::DetectorInputParams{}.num_points));
     EXPECT_EQ(b.foreground_points.rows(), 0);
+    EXPECT_EQ(b.background_points.rows(), 0);
     EXPECT_TRUE(b.boxes_3d_segmented.empty());
     EXPECT_EQ(c.foreground_points.rows(), 0);
     EXPECT_TRUE(c.boxes_3d_segmented.empty());
@@ -413,12 +419,30 @@ TEST(HtxSource, SegmentsTheWalkerWithTheShippedModel) {
       ++fg_total;
       fg_on += truth.at<std::uint8_t>(v, u) != 0U ? 1U : 0U;
     }
+    // Background points well inside the walker's silhouette are the head's misses there.
+    cv::Mat inner;
+    cv::erode(fr.dynamic_mask, inner, cv::Mat::ones(7, 7, CV_8U));
+    const auto on_inner = [&](const Points3f& pts) {
+      std::size_t n = 0;
+      for (Eigen::Index r = 0; r < pts.rows(); ++r) {
+        const Eigen::Vector2d uv = cam.project(pts.row(r).transpose().cast<double>());
+        const int u = static_cast<int>(std::lround(uv.x()));
+        const int v = static_cast<int>(std::lround(uv.y()));
+        if (u < 0 || v < 0 || u >= cam.width || v >= cam.height) continue;
+        n += inner.at<std::uint8_t>(v, u) != 0U ? 1U : 0U;
+      }
+      return n;
+    };
+    inner_fg += on_inner(a.foreground_points);
+    inner_bg += on_inner(a.background_points);
   }
   std::cout << "htx segmentation: " << fg_on << " of " << fg_total
-            << " foreground points on the walker, " << boxes << " boxes\n";
+            << " foreground points on the walker, " << boxes << " boxes; inside the walker "
+            << inner_fg << " foreground and " << inner_bg << " background points\n";
   EXPECT_GT(boxes, 0U);
   EXPECT_GT(fg_total, 50U);
   EXPECT_GE(static_cast<double>(fg_on), 0.9 * static_cast<double>(fg_total));
+  EXPECT_GE(static_cast<double>(inner_fg), 0.8 * static_cast<double>(inner_fg + inner_bg));
 }
 
 TEST(CompositeSource, SecondSourceSeesTheFrameWithoutTheFirstsObjects) {
@@ -482,16 +506,19 @@ TEST(CompositeSource, SecondSourceSeesTheFrameWithoutTheFirstsObjects) {
     s->out.boxes_3d.push_back(c);
     s->out.boxes_3d_segmented.push_back(1);
     s->out.foreground_points = Points3f::Constant(5, 3, 2.2F);
+    s->out.background_points = Points3f::Constant(7, 3, 3.0F);
     s->out.foreground_radius = 0.3F;
     const DynamicObjects u = ds3d::slam::CompositeSource(b, s).detect(f, ds3d::PinholeCamera{});
     ASSERT_EQ(u.boxes_3d.size(), 2U);
     EXPECT_EQ(u.boxes_3d_segmented, (std::vector<std::uint8_t>{0, 1}));
     EXPECT_EQ(u.foreground_points.rows(), 5);
+    EXPECT_EQ(u.background_points.rows(), 7);
     EXPECT_FLOAT_EQ(u.foreground_radius, 0.3F);
     const DynamicObjects g = ds3d::slam::MotionGatedSource(s, b).detect(f, ds3d::PinholeCamera{});
     ASSERT_EQ(g.boxes_3d.size(), 2U);  // the motion box, then the kept semantic box
     EXPECT_EQ(g.boxes_3d_segmented, (std::vector<std::uint8_t>{0, 1}));
     EXPECT_EQ(g.foreground_points.rows(), 5);
+    EXPECT_EQ(g.background_points.rows(), 7);
     const DynamicObjects p = ds3d::slam::CompositeSource(b, b).detect(f, ds3d::PinholeCamera{});
     EXPECT_TRUE(p.boxes_3d_segmented.empty());
     EXPECT_EQ(p.foreground_points.rows(), 0);

@@ -48,11 +48,25 @@ std::vector<cv::Rect2f> rects_from(const char* fn, const py::handle& obj) {
   return out;
 }
 
+// (N, 3) float32 camera-frame points [m] (non-finite rows allowed: the masker ignores them).
+ds3d::Points3f points_from(const char* fn, const char* name, const py::object& obj) {
+  const auto a = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(obj);
+  DS3D_CHECK(a && a.ndim() == 2 && a.shape(1) == 3, fn, ": ", name,
+             " must be an (N, 3) array of camera-frame points [m] (got ", pu::describe(obj), ")");
+  ds3d::Points3f out(a.shape(0), 3);
+  const auto r = a.unchecked<2>();
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+    for (int j = 0; j < 3; ++j) out(i, j) = r(i, j);
+  }
+  return out;
+}
+
 DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores,
                             const py::object& boxes_3d, const py::object& pixel_mask,
                             const py::object& boxes_3d_margin, const py::object& support_plane,
                             const py::object& foreground_points,
-                            const py::object& boxes_3d_segmented, float foreground_radius) {
+                            const py::object& boxes_3d_segmented, float foreground_radius,
+                            const py::object& background_points) {
   constexpr const char* fn = "ds3d.DynamicObjects";
   DynamicObjects o;
   if (!boxes_2d.is_none()) o.boxes_2d = rects_from(fn, boxes_2d);
@@ -107,16 +121,10 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
     o.support_plane = q;
   }
   if (!foreground_points.is_none()) {
-    const auto a =
-        py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(foreground_points);
-    DS3D_CHECK(a && a.ndim() == 2 && a.shape(1) == 3, fn,
-               ": foreground_points must be an (N, 3) array of camera-frame points [m] (got ",
-               pu::describe(foreground_points), ")");
-    o.foreground_points.resize(a.shape(0), 3);
-    const auto r = a.unchecked<2>();
-    for (py::ssize_t i = 0; i < a.shape(0); ++i) {
-      for (int j = 0; j < 3; ++j) o.foreground_points(i, j) = r(i, j);
-    }
+    o.foreground_points = points_from(fn, "foreground_points", foreground_points);
+  }
+  if (!background_points.is_none()) {
+    o.background_points = points_from(fn, "background_points", background_points);
   }
   if (!boxes_3d_segmented.is_none()) {
     const auto a =
@@ -185,16 +193,19 @@ void bind_dynamic_sources(py::module_& m) {
       "What a dynamic-object source found in one frame (include/ds3d/slam_frontend.hpp).\n"
       "DynamicObjects(boxes_2d=None, scores=None, boxes_3d=None, pixel_mask=None,\n"
       "boxes_3d_margin=None, support_plane=None, foreground_points=None,\n"
-      "boxes_3d_segmented=None, foreground_radius=0.2) builds one from\n"
+      "boxes_3d_segmented=None, foreground_radius=0.2, background_points=None) builds one from\n"
       "your own detector's output (ValueError on bad shapes, non-finite values, inverted boxes).\n"
       "foreground_points (N, 3) [m, camera frame] and boxes_3d_segmented (K,) bool: a segmenting\n"
       "detector's points on its objects; the masker keeps the dynamic keypoints of a flagged box\n"
-      "only within foreground_radius [m] of one (ds3d.HdbscanMasker).")
+      "only within foreground_radius [m] of one and, when background_points (M, 3) (its points\n"
+      "off the objects) are given, only where the nearest of all these points is a foreground\n"
+      "one (ds3d.HdbscanMasker).")
       .def(py::init(&objects_from), py::arg("boxes_2d") = py::none(),
            py::arg("scores") = py::none(), py::arg("boxes_3d") = py::none(),
            py::arg("pixel_mask") = py::none(), py::arg("boxes_3d_margin") = py::none(),
            py::arg("support_plane") = py::none(), py::arg("foreground_points") = py::none(),
-           py::arg("boxes_3d_segmented") = py::none(), py::arg("foreground_radius") = 0.2F)
+           py::arg("boxes_3d_segmented") = py::none(), py::arg("foreground_radius") = 0.2F,
+           py::arg("background_points") = py::none())
       .def_property_readonly(
           "boxes_2d",
           [](const DynamicObjects& o) {
@@ -248,6 +259,11 @@ void bind_dynamic_sources(py::module_& m) {
           [](const DynamicObjects& o) { return ds3d::Points3f(o.foreground_points); },
           "(N, 3) float32 points segmented as on the objects [m, camera frame] (htx with "
           "segment), or (0, 3).")
+      .def_property_readonly(
+          "background_points",
+          [](const DynamicObjects& o) { return ds3d::Points3f(o.background_points); },
+          "(M, 3) float32 points the same segmentation put off the objects [m, camera frame], "
+          "or (0, 3).")
       .def_property_readonly(
           "boxes_3d_segmented",
           [](const DynamicObjects& o) {
