@@ -180,22 +180,20 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
     return std::any_of(rects.begin(), rects.end(),
                        [&](const ImageBox& b) { return b.contains(u, v); });
   };
-  // The finite foreground points in a KD-tree (nearest-neighbour queries).
-  std::vector<std::uint32_t> finite_rows;
-  for (Eigen::Index r = 0; r < objects.foreground_points.rows(); ++r) {
-    if (objects.foreground_points.row(r).allFinite()) {
-      finite_rows.push_back(static_cast<std::uint32_t>(r));
+  // The finite rows of a point set (KD-trees below are built over them only).
+  const auto finite_rows_of = [](const Points3f& pts) {
+    std::vector<std::uint32_t> rows;
+    for (Eigen::Index r = 0; r < pts.rows(); ++r) {
+      if (pts.row(r).allFinite()) rows.push_back(static_cast<std::uint32_t>(r));
     }
-  }
+    return rows;
+  };
+  // Foreground points, and background points when the source gives them (nearest-neighbour
+  // label transfer), in KD-trees.
+  const std::vector<std::uint32_t> finite_rows = finite_rows_of(objects.foreground_points);
   const detail::KdTreeCloudAdaptor<Points3f> adaptor{objects.foreground_points, &finite_rows};
   detail::KdTree3f<Points3f> tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-  // The finite background points, when the source gives them (nearest-neighbour label transfer).
-  std::vector<std::uint32_t> bg_rows;
-  for (Eigen::Index r = 0; r < objects.background_points.rows(); ++r) {
-    if (objects.background_points.row(r).allFinite()) {
-      bg_rows.push_back(static_cast<std::uint32_t>(r));
-    }
-  }
+  const std::vector<std::uint32_t> bg_rows = finite_rows_of(objects.background_points);
   const detail::KdTreeCloudAdaptor<Points3f> bg_adaptor{objects.background_points, &bg_rows};
   detail::KdTree3f<Points3f> bg_tree(3, bg_adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   const double r2 = static_cast<double>(objects.foreground_radius) *
