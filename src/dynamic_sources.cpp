@@ -439,19 +439,24 @@ std::vector<std::uint8_t> segmented_flags(const DynamicObjects& o) {
   return f;
 }
 
-// Sets to.boxes_3d_segmented to `flags` (one per to.boxes_3d) and adds the foreground points of
-// `from` when one of its boxes made it into `to` segmented; empty flags when none is set.
+// Appends the rows of `from` to `to`.
+void append_rows(Points3f& to, const Points3f& from) {
+  const Eigen::Index n = to.rows();
+  to.conservativeResize(n + from.rows(), 3);
+  to.bottomRows(from.rows()) = from;
+}
+
+// Sets to.boxes_3d_segmented to `flags` (one per to.boxes_3d) and adds the foreground and
+// background points of `from` when one of its boxes made it into `to` segmented; empty flags
+// when none is set.
 void merge_segmentation(DynamicObjects& to, std::vector<std::uint8_t> flags,
                         const DynamicObjects& from, bool from_used) {
   if (from_used && from.foreground_points.rows() > 0) {
     const Eigen::Index n = to.foreground_points.rows();
     to.foreground_radius =
         n == 0 ? from.foreground_radius : std::max(to.foreground_radius, from.foreground_radius);
-    to.foreground_points.conservativeResize(n + from.foreground_points.rows(), 3);
-    to.foreground_points.bottomRows(from.foreground_points.rows()) = from.foreground_points;
-    const Eigen::Index m = to.background_points.rows();
-    to.background_points.conservativeResize(m + from.background_points.rows(), 3);
-    to.background_points.bottomRows(from.background_points.rows()) = from.background_points;
+    append_rows(to.foreground_points, from.foreground_points);
+    append_rows(to.background_points, from.background_points);
   }
   if (std::none_of(flags.begin(), flags.end(), [](std::uint8_t f) { return f != 0U; })) {
     flags.clear();

@@ -35,6 +35,7 @@ import torch.nn.functional as F
 
 from .data import HtxDataset
 from .losses import sigmoid_focal_loss
+from .train import encode_stored, part_head_rows
 
 SITTING_COLUMN = 2  # data.BOX_META_COLUMNS
 
@@ -52,21 +53,10 @@ def pixel_labels(sample):
 @torch.no_grad()
 def head_inputs(model, sample):
     """The part head's input rows [n, d + 3] of one stored sample (its stored network selections),
-    as ``model.part_logits`` builds them; the model must be in eval mode."""
-    c = model.config
-    x = torch.from_numpy(np.ascontiguousarray(sample["points"], dtype=np.float32))
-    ci = torch.from_numpy(np.asarray(sample["centre_idx"], dtype=np.int64))
-    f = (x[torch.from_numpy(np.asarray(sample["group"], dtype=np.int64))] - x[ci][:, None, :]) / c["sa_radius"]
-    for layer in model.pre_encoder:
-        f = layer(f)
-    f = f.max(dim=1).values[:, None, :]
-    for layer in model.encoder:
-        f = layer(f)
-    enc = f[:, 0, :]
-    nn_idx = torch.from_numpy(np.asarray(sample["nn_idx"], dtype=np.int64))
-    fi = (enc[nn_idx] * torch.from_numpy(np.asarray(sample["nn_w"], dtype=np.float32))[..., None]).sum(dim=1)
-    smin, smax = x.min(dim=0).values, x.max(dim=0).values
-    return torch.cat([fi, (x - smin) / torch.clamp(smax - smin, min=1e-6)], dim=1)
+    as ``model.part_logits`` builds them (train.encode_stored, train.part_head_rows); the model
+    must be in eval mode."""
+    xyz, _, enc, smin, smax = encode_stored(model, [sample])
+    return part_head_rows(enc[:, 0, :], xyz[0], sample, smin[0], smax[0])
 
 
 def _head_logits(head, out, rows):
@@ -137,7 +127,7 @@ def finetune_part(model, dataset, epochs=6, lr=1e-3, alpha=0.5, batch=16384, val
     train_rows = torch.nonzero(~VAL).squeeze(1)
     bs = min(batch, len(train_rows))
     steps_per_epoch = max(1, len(train_rows) // bs)
-    params = [p for p in list(head.parameters()) + list(out.parameters())]
+    params = list(head.parameters()) + list(out.parameters())
     with torch.random.fork_rng():
         torch.manual_seed(seed)
         opt = torch.optim.AdamW(params, lr=lr, weight_decay=0.01)

@@ -75,6 +75,42 @@ def mirror(sample):
     return s
 
 
+def encode_stored(model, samples):
+    """The set abstraction and encoder of ``model`` on stored samples, as one batch, with their
+    stored network selections (data.network_indices). Every scene must have the same token count.
+    Returns (xyz list of [n, 3], centres [B, t, 3], enc [t, B, d], scene_min [B, 3],
+    scene_max [B, 3])."""
+    c = model.config
+    xyz = [torch.from_numpy(np.ascontiguousarray(s["points"], dtype=np.float32)) for s in samples]
+    cidx = [torch.from_numpy(np.asarray(s["centre_idx"], dtype=np.int64)) for s in samples]
+    if any(len(ci) != len(cidx[0]) for ci in cidx):
+        raise ValueError("ds3d.htx.train.encode_stored: scenes need equal token counts")
+    centres = torch.stack([x[ci] for x, ci in zip(xyz, cidx)])  # [B, t, 3]
+    grouped = torch.stack([(x[torch.from_numpy(np.asarray(s["group"], dtype=np.int64))] - x[ci][:, None, :])
+                           / c["sa_radius"] for x, ci, s in zip(xyz, cidx, samples)])  # [B, t, s, 3]
+    feats = grouped
+    for layer in model.pre_encoder:
+        feats = layer(feats)
+    feats = feats.max(dim=2).values  # [B, t, d]
+    enc = feats.transpose(0, 1)  # [t, B, d]
+    for layer in model.encoder:
+        enc = layer(enc)
+    smin = torch.stack([x.min(dim=0).values for x in xyz])  # [B, 3]
+    smax = torch.stack([x.max(dim=0).values for x in xyz])
+    return xyz, centres, enc, smin, smax
+
+
+def part_head_rows(enc_scene, xyz, sample, scene_min, scene_max):
+    """The part head's input rows [n, d + 3] of one scene (``model.part_logits``): its encoder
+    features enc_scene [t, d] interpolated at every point with the stored 3 nearest tokens and
+    weights, then the point's xyz normalised to the scene box."""
+    nn_idx = torch.from_numpy(np.asarray(sample["nn_idx"], dtype=np.int64))
+    nn_w = torch.from_numpy(np.asarray(sample["nn_w"], dtype=np.float32))
+    f = (enc_scene[nn_idx] * nn_w[..., None]).sum(dim=1)
+    extent = torch.clamp(scene_max - scene_min, min=1e-6)
+    return torch.cat([f, (xyz - scene_min) / extent], dim=1)
+
+
 def batched_forward(model, samples, with_parts=True):
     """model.forward for a list of stored samples at once, using their stored network selections
     (data.network_indices): the set abstraction, encoder, projection and decoder run as one batch
@@ -83,27 +119,13 @@ def batched_forward(model, samples, with_parts=True):
     token and query counts. Returns one dict per scene with ``layers`` (all decoder layers),
     ``scene_min``, ``scene_max`` and ``part_logits``; in eval mode equal to ``model(xyz)``.
     """
-    c = model.config
-    xyz = [torch.from_numpy(np.ascontiguousarray(s["points"], dtype=np.float32)) for s in samples]
-    cidx = [torch.from_numpy(s["centre_idx"]) for s in samples]
-    t, nq = len(cidx[0]), len(samples[0]["query_idx"])
-    if any(len(ci) != t or len(s["query_idx"]) != nq for ci, s in zip(cidx, samples)):
+    nq = len(samples[0]["query_idx"])
+    if any(len(s["query_idx"]) != nq for s in samples):
         raise ValueError("ds3d.htx.train.batched_forward: scenes need equal token and query counts")
-    centres = torch.stack([x[ci] for x, ci in zip(xyz, cidx)])  # [B, t, 3]
-    grouped = torch.stack([(x[torch.from_numpy(s["group"])] - x[ci][:, None, :]) / c["sa_radius"]
-                           for x, ci, s in zip(xyz, cidx, samples)])  # [B, t, s, 3]
-    feats = grouped
-    for layer in model.pre_encoder:
-        feats = layer(feats)
-    feats = feats.max(dim=2).values  # [B, t, d]
-    enc = feats.transpose(0, 1)  # [t, B, d]
-    for layer in model.encoder:
-        enc = layer(enc)
+    xyz, centres, enc, smin, smax = encode_stored(model, samples)
     memory = enc
     for layer in model.encoder_to_decoder_projection:
         memory = layer(memory)  # [t, B, d]
-    smin = torch.stack([x.min(dim=0).values for x in xyz])  # [B, 3]
-    smax = torch.stack([x.max(dim=0).values for x in xyz])
     qxyz = torch.stack([centres[b, torch.from_numpy(s["query_idx"])] for b, s in enumerate(samples)])
     qpos = torch.stack([fourier_embedding(qxyz[b], smin[b], smax[b], model.gauss_B)
                         for b in range(len(samples))]).transpose(0, 1)  # [q, B, d]
@@ -119,13 +141,8 @@ def batched_forward(model, samples, with_parts=True):
         for b in range(len(samples)):
             outs[b]["layers"].append(model.heads(normed[:, b, :], qxyz[b], smin[b], smax[b]))
     if with_parts:
-        encb = enc.transpose(0, 1)  # [B, t, d]
-        rows = []
-        for b, (x, s) in enumerate(zip(xyz, samples)):
-            f = (encb[b][torch.from_numpy(s["nn_idx"])] * torch.from_numpy(s["nn_w"])[..., None]).sum(dim=1)
-            extent = torch.clamp(smax[b] - smin[b], min=1e-6)
-            rows.append(torch.cat([f, (x - smin[b]) / extent], dim=1))
-        h = torch.cat(rows)  # [sum n, d + 3]
+        h = torch.cat([part_head_rows(enc[:, b, :], x, s, smin[b], smax[b])
+                       for b, (x, s) in enumerate(zip(xyz, samples))])  # [sum n, d + 3]
         for layer in model.part_head:
             h = layer(h)
         logits = model.part_out(h)
