@@ -180,6 +180,9 @@ struct BoxOutcome {
 /// Output of DynamicFeatureFilter::filter().
 struct DynamicFilterResult {
   std::vector<std::uint8_t> dynamic;  ///< one per keypoint: 1 = on a moving object, 0 = keep
+  /// One per keypoint: 1 = a keypoint with depth that passed some box's gates (rectangle, depth
+  /// range, support plane, solid) and so went into that box's clustering, dynamic or not.
+  std::vector<std::uint8_t> gated;
   int num_on_support = 0;             ///< keypoints in some box kept static on the support plane
   int num_outside_solid = 0;          ///< keypoints in some box's rectangle outside its solid
   std::vector<BoxOutcome> boxes;      ///< one per processed box (detections, then carried regions)

@@ -77,6 +77,7 @@ void bind_dynamic_filter(py::module_& m) {
       .def("validate", &ds3d::DynamicFilterParams::validate);
   py::class_<ds3d::DynamicFilterResult>(m, "DynamicFilterResult")
       .def_readonly("dynamic", &ds3d::DynamicFilterResult::dynamic)
+      .def_readonly("gated", &ds3d::DynamicFilterResult::gated)
       .def_readonly("num_dynamic", &ds3d::DynamicFilterResult::num_dynamic)
       .def_readonly("num_non_finite", &ds3d::DynamicFilterResult::num_non_finite)
       .def_readonly("num_ignored_boxes", &ds3d::DynamicFilterResult::num_ignored_boxes)

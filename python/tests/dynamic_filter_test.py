@@ -53,6 +53,8 @@ def test_support_plane_and_solid_box():
     assert (plain & is_floor).sum() > 20  # the failure the plane fixes
     assert not (dyn & is_floor).any() and r.num_on_support > 20
     assert dyn[~is_floor].mean() >= 0.9
+    gated = np.asarray(r.gated, bool)  # went into the box's clustering: the person, not the floor
+    assert not (gated & is_floor).any() and gated[~is_floor].mean() >= 0.9
     with pytest.raises(ValueError, match="support_plane"):
         ds3d.DynamicFeatureFilter().filter(kp, [loose], support_plane=[0, 0, 0, 1])
 

@@ -227,6 +227,7 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(
   const auto n = static_cast<std::size_t>(keypoints.rows());
   DynamicFilterResult res;
   res.dynamic.assign(n, 0);
+  res.gated.assign(n, 0);
   std::vector<std::uint8_t> finite_uv(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     const auto r = static_cast<Eigen::Index>(i);
@@ -344,6 +345,7 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(
         continue;
       }
       with_depth.push_back(i);
+      res.gated[i] = 1;
     }
     out.num_keypoints = static_cast<int>(in_box.size());
     out.num_with_depth = static_cast<int>(with_depth.size());
