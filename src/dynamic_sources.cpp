@@ -128,6 +128,81 @@ Keypoints3f keypoint_array(const OrbFeatures& features, const cv::Mat& depth,
   return kp;
 }
 
+namespace {
+
+// A valid depth pixel of a window.
+struct DepthPixel {
+  std::uint16_t raw;
+  int x;
+  int y;
+};
+
+// The depth [m] a keypoint at pixel (x, y) without depth is given: the median of the valid depths
+// in the (2 half + 1)² window, or, when those split at a gap of HdbscanMasker::kHoleDepthGap or
+// more (a hole at a depth discontinuity: the silhouette of a person in front of what it hides),
+// the median of the side whose colour matches the keypoint's pixel best, each side's colour
+// being the mean of its pixels nearest to (x, y) (Chebyshev rings r and r + 1). Without a
+// colour image of the depth's size (CV_8UC3) the median of the whole window. nullopt when the
+// window holds no depth.
+std::optional<double> hole_depth(const cv::Mat& depth, const cv::Mat& rgb, int x, int y, int half,
+                                 double depth_scale) {
+  std::vector<DepthPixel> w;
+  for (int yy = std::max(0, y - half); yy <= std::min(depth.rows - 1, y + half); ++yy) {
+    const auto* row = depth.ptr<std::uint16_t>(yy);
+    for (int xx = std::max(0, x - half); xx <= std::min(depth.cols - 1, x + half); ++xx) {
+      if (row[xx] != 0U) w.push_back({row[xx], xx, yy});
+    }
+  }
+  if (w.empty()) return std::nullopt;
+  std::sort(w.begin(), w.end(), [](const DepthPixel& a, const DepthPixel& b) {
+    return a.raw < b.raw || (a.raw == b.raw && (a.y < b.y || (a.y == b.y && a.x < b.x)));
+  });
+  const auto median = [&](std::size_t a, std::size_t b) {
+    return static_cast<double>(w[a + (b - a) / 2].raw) / depth_scale;
+  };
+  std::size_t cut = 0;  // near side [0, cut), far side [cut, n)
+  int gap = 0;
+  for (std::size_t k = 1; k < w.size(); ++k) {
+    const int g = static_cast<int>(w[k].raw) - static_cast<int>(w[k - 1].raw);
+    if (g > gap) {
+      gap = g;
+      cut = k;
+    }
+  }
+  const bool colour = rgb.type() == CV_8UC3 && rgb.rows == depth.rows && rgb.cols == depth.cols;
+  if (!colour || static_cast<double>(gap) / depth_scale < HdbscanMasker::kHoleDepthGap) {
+    return median(0, w.size());
+  }
+  const cv::Vec3b& here = rgb.at<cv::Vec3b>(y, x);
+  const auto ring = [&](const DepthPixel& p) {
+    return std::max(std::abs(p.x - x), std::abs(p.y - y));
+  };
+  double colour_distance[2] = {0.0, 0.0};
+  for (int side = 0; side < 2; ++side) {
+    const std::size_t a = side == 0 ? 0 : cut;
+    const std::size_t b = side == 0 ? cut : w.size();
+    int nearest = std::numeric_limits<int>::max();
+    for (std::size_t k = a; k < b; ++k) nearest = std::min(nearest, ring(w[k]));
+    double sum[3] = {0.0, 0.0, 0.0};
+    int n = 0;
+    for (std::size_t k = a; k < b; ++k) {
+      if (ring(w[k]) > nearest + 1) continue;
+      const cv::Vec3b& c = rgb.at<cv::Vec3b>(w[k].y, w[k].x);
+      for (int ch = 0; ch < 3; ++ch) sum[ch] += c[ch];
+      ++n;
+    }
+    double d2 = 0.0;
+    for (int ch = 0; ch < 3; ++ch) {
+      const double diff = sum[ch] / n - static_cast<double>(here[ch]);
+      d2 += diff * diff;
+    }
+    colour_distance[side] = d2;
+  }
+  return colour_distance[0] <= colour_distance[1] ? median(0, cut) : median(cut, w.size());
+}
+
+}  // namespace
+
 HdbscanMasker::HdbscanMasker(const DynamicFilterParams& params) : filter_(params) {}
 
 std::vector<std::uint8_t> HdbscanMasker::mask(const FrameInput& frame, const PinholeCamera& camera,
@@ -213,7 +288,6 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
   };
   const cv::Mat& depth = frame.depth;
   const bool raw = camera_image(depth, CV_16UC1, camera);
-  std::vector<std::uint16_t> window;
   for (std::size_t i = 0; i < out.size(); ++i) {
     const auto r = static_cast<Eigen::Index>(i);
     const float u = kp(r, 0);
@@ -221,7 +295,17 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
     const float z = kp(r, 2);
     if (!std::isfinite(u) || !std::isfinite(v)) continue;
     if (std::isfinite(z) && z > 0.0F) {
-      if (out[i] == 0U || inside(plain_rects, u, v)) continue;
+      if (inside(plain_rects, u, v)) continue;
+      if (out[i] == 0U) {
+        // A keypoint the box's clustering kept static although it passed the box's gates (a
+        // desk in front took the foreground cluster, the person split in depth): the
+        // segmentation decides.
+        if (last_.gated[i] != 0U && inside(seg_rects, u, v) && on_segment(u, v, z)) {
+          out[i] = 1;
+          ++added_;
+        }
+        continue;
+      }
       if (!on_segment(u, v, z)) {
         out[i] = 0;
         ++vetoed_;
@@ -234,20 +318,9 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
     if (raw) {
       const int x = std::clamp(static_cast<int>(std::lround(u)), 0, camera.width - 1);
       const int y = std::clamp(static_cast<int>(std::lround(v)), 0, camera.height - 1);
-      window.clear();
-      for (int yy = std::max(0, y - kForegroundWindow);
-           yy <= std::min(camera.height - 1, y + kForegroundWindow); ++yy) {
-        const auto* row = depth.ptr<std::uint16_t>(yy);
-        for (int xx = std::max(0, x - kForegroundWindow);
-             xx <= std::min(camera.width - 1, x + kForegroundWindow); ++xx) {
-          if (row[xx] != 0U) window.push_back(row[xx]);
-        }
-      }
-      if (!window.empty()) {
-        const auto mid = window.begin() + static_cast<std::ptrdiff_t>(window.size() / 2);
-        std::nth_element(window.begin(), mid, window.end());
-        dynamic = on_segment(u, v, static_cast<double>(*mid) / camera.depth_scale);
-      }
+      const std::optional<double> zb =
+          hole_depth(depth, frame.rgb, x, y, kForegroundWindow, camera.depth_scale);
+      if (zb) dynamic = on_segment(u, v, *zb);
     }
     if (dynamic && out[i] == 0U) ++added_;
     if (!dynamic && out[i] != 0U) ++vetoed_;

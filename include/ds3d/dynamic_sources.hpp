@@ -69,13 +69,20 @@ class FileSource final : public DynamicObjectSource {
 /// dynamic only if its 3-D point (camera back-projection of its pixel and depth) lies within
 /// DynamicObjects::foreground_radius of a foreground point and, when the source also gives
 /// DynamicObjects::background_points, that foreground point is no farther than the nearest
-/// background point (nearest-neighbour label transfer). A keypoint without depth inside a
-/// segmented box's rectangle takes the median of the valid depths in the
-/// (2·kForegroundWindow + 1)² pixels around it (depth holes fringe object silhouettes) and is
-/// dynamic exactly when that point passes the same test (no valid depth there: static).
-/// So the box filter proposes and the segmentation confirms: furniture in a person's box,
-/// false boxes without foreground, floor at the feet and (with background points) the seat
-/// under a seated person's thighs stay static.
+/// background point (nearest-neighbour label transfer). Conversely, a keypoint with depth that
+/// the filter kept static although it passed the gates of a box (DynamicFilterResult::gated:
+/// rectangle, depth range, support plane, solid) becomes dynamic when it lies in a segmented
+/// box's rectangle, in no unsegmented one's, and passes that test (the filter's cluster choice
+/// missed it: a desk in front took the foreground cluster, a seated person split in depth).
+/// A keypoint without depth inside a segmented box's rectangle takes a depth from the valid
+/// depths in the (2·kForegroundWindow + 1)² pixels around it (depth holes fringe object
+/// silhouettes): their median or, when they split at a gap of kHoleDepthGap or more, the
+/// median of the side whose colour (the mean of its pixels nearest to the keypoint) matches
+/// the keypoint's own pixel in FrameInput::rgb best (median of all without a CV_8UC3 image of
+/// the depth's size); it is dynamic exactly when that point passes the same test (no valid
+/// depth there: static). So the segmentation decides inside the gated boxes: furniture in a
+/// person's box, false boxes without foreground, floor at the feet and (with background
+/// points) the seat under a seated person's thighs stay static (docs/dynamic.md, session 12).
 class HdbscanMasker final : public DynamicFeatureMasker {
  public:
   /// @throws ds3d::InvalidArgument on bad params.
@@ -89,9 +96,13 @@ class HdbscanMasker final : public DynamicFeatureMasker {
   [[nodiscard]] const DynamicFilterResult& last_result() const noexcept { return last_; }
   /// Half-size [px] of the depth window for keypoints without depth in segmented boxes.
   static constexpr int kForegroundWindow = 4;
+  /// Depth gap [m] in that window taken for a silhouette (an object in front of what it hides):
+  /// the hole then takes the depth of the side matching its colour.
+  static constexpr double kHoleDepthGap = 0.1;
   /// Keypoints the segmentation check made static (last frame).
   [[nodiscard]] std::size_t last_vetoed() const noexcept { return vetoed_; }
-  /// Keypoints without depth the segmentation check made dynamic (last frame).
+  /// Keypoints the segmentation check made dynamic (last frame): gated keypoints with depth the
+  /// filter kept static, and keypoints without depth.
   [[nodiscard]] std::size_t last_added() const noexcept { return added_; }
 
  private:

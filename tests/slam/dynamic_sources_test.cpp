@@ -160,6 +160,37 @@ TEST(HdbscanMasker, MarksKeypointsOnTheBoxedPersonAndOnTheMask) {
   EXPECT_THROW((void)masker.mask(f, ds3d::PinholeCamera{}, feats, obj), ds3d::InvalidArgument);
 }
 
+// A keypoint at (u, v) without feature depth (the masker reads the depth image).
+void add_keypoint(ds3d::slam::OrbFeatures& feats, float u, float v) {
+  feats.keypoints.emplace_back(u, v, 31.0F);
+  feats.undistorted.emplace_back(u, v);
+  feats.depth.push_back(0.0F);
+}
+
+// Keypoints on a 10-pixel grid over a 640x480 image.
+ds3d::slam::OrbFeatures keypoint_grid() {
+  ds3d::slam::OrbFeatures feats;
+  for (int v = 12; v < 480; v += 10) {
+    for (int u = 12; u < 640; u += 10)
+      add_keypoint(feats, static_cast<float>(u), static_cast<float>(v));
+  }
+  return feats;
+}
+
+// (dynamic, all) among the first `grid` keypoints where `where(i)` holds.
+template <class Where>
+std::pair<int, int> count_on(const std::vector<std::uint8_t>& m, std::size_t grid,
+                             const Where& where) {
+  int n = 0;
+  int on = 0;
+  for (std::size_t i = 0; i < grid; ++i) {
+    if (!where(i)) continue;
+    ++n;
+    on += m[i] != 0U ? 1 : 0;
+  }
+  return {on, n};
+}
+
 // A person (slab at 1.5 m, u 250-310) with a chair at the same depth right beside it (u 311-420)
 // in front of a wall at 3 m: one 3-D box holds both, so the box filter's foreground cluster
 // takes the chair too. With the box flagged as segmented and the person's pixels as foreground
@@ -174,16 +205,9 @@ TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
   cv::Mat(depth, cv::Rect(414, 200, 10, 40)).setTo(0);      // hole on the chair's right edge
   FrameInput f;
   f.depth = depth;
-  ds3d::slam::OrbFeatures feats;
-  const auto add = [&](float u, float v) {
-    feats.keypoints.emplace_back(u, v, 31.0F);
-    feats.undistorted.emplace_back(u, v);
-    feats.depth.push_back(0.0F);  // the masker reads the depth image
-  };
-  for (int v = 12; v < 480; v += 10) {
-    for (int u = 12; u < 640; u += 10) add(static_cast<float>(u), static_cast<float>(v));
-  }
+  ds3d::slam::OrbFeatures feats = keypoint_grid();
   const std::size_t grid = feats.size();
+  const auto add = [&](float u, float v) { add_keypoint(feats, u, v); };
   add(250.0F, 215.0F);  // in the person-edge hole
   add(418.0F, 215.0F);  // in the chair-edge hole
   DynamicObjects obj;
@@ -213,14 +237,7 @@ TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
            feats.keypoints[i].pt.y > 90.0F;
   };
   const auto count = [&](const std::vector<std::uint8_t>& m, const auto& where) {
-    int n = 0;
-    int on = 0;
-    for (std::size_t i = 0; i < grid; ++i) {
-      if (!where(i)) continue;
-      ++n;
-      on += m[i] != 0U ? 1 : 0;
-    }
-    return std::pair<int, int>{on, n};
+    return count_on(m, grid, where);
   };
 
   // Without the flag the foreground points are ignored: the chair is taken with the person.
@@ -297,6 +314,109 @@ TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
   } catch (const ds3d::InvalidArgument& e) {
     EXPECT_NE(std::string(e.what()).find("foreground_radius"), std::string::npos) << e.what();
   }
+}
+
+// Points of `cam` back-projected on a pixel grid (step 8) over [u0, u1] x [v0, v1] at depth z.
+Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor> slab_points(const ds3d::PinholeCamera& cam,
+                                                                     int u0, int u1, int v0, int v1,
+                                                                     double z) {
+  std::vector<Eigen::Vector3f> pts;
+  for (int v = v0; v <= v1; v += 8) {
+    for (int u = u0; u <= u1; u += 8) pts.push_back(cam.back_project(u, v, z).cast<float>());
+  }
+  Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor> out(
+      static_cast<Eigen::Index>(pts.size()), 3);
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    out.row(static_cast<Eigen::Index>(k)) = pts[k].transpose();
+  }
+  return out;
+}
+
+// A person (slab at 1.5 m, u 250-329) behind a desk (1.0 m, u 200-379, v from 300) in front of a
+// wall at 3 m, all in one segmented 3-D box. The box filter takes the nearest cluster, the desk:
+// the segmentation vetoes the desk and makes the gated person keypoints dynamic instead (session
+// 12). A depth hole on the person's left edge (u 249-253): a keypoint in it takes the depth of the
+// side whose colour it has, so the red person pixel at u 250 is dynamic although most of the
+// window's depths are the wall's.
+TEST(HdbscanMasker, SegmentationDecidesInsideGatedBoxesAndColoursHoles) {
+  const ds3d::PinholeCamera cam;
+  cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(15000));      // wall, 3 m
+  cv::Mat(depth, cv::Rect(250, 80, 80, 400)).setTo(7500);    // person, 1.5 m
+  cv::Mat(depth, cv::Rect(200, 300, 180, 180)).setTo(5000);  // desk, 1.0 m
+  cv::Mat(depth, cv::Rect(249, 150, 5, 41)).setTo(0);        // hole on the person's edge
+  cv::Mat rgb(480, 640, CV_8UC3, cv::Scalar(200, 40, 40));   // wall: blue (BGR)
+  cv::Mat(rgb, cv::Rect(250, 80, 80, 400)).setTo(cv::Scalar(40, 40, 200));    // person: red
+  cv::Mat(rgb, cv::Rect(200, 300, 180, 180)).setTo(cv::Scalar(40, 200, 40));  // desk: green
+  FrameInput f;
+  f.depth = depth;
+  ds3d::slam::OrbFeatures feats = keypoint_grid();
+  const std::size_t grid = feats.size();
+  const auto add = [&](float u, float v) { add_keypoint(feats, u, v); };
+  add(250.0F, 170.0F);  // hole, red (person) pixel
+  add(249.0F, 170.0F);  // hole, blue (wall) pixel
+  DynamicObjects obj;
+  Eigen::Matrix<float, 8, 3> c;
+  for (int i = 0; i < 8; ++i) {
+    c.row(i) << ((i & 1) ? 0.2F : -0.3F), ((i & 2) ? 0.75F : -0.55F), ((i & 4) ? 1.7F : 0.9F);
+  }
+  obj.boxes_3d.push_back(c);
+  obj.boxes_3d_margin.push_back(0.1F);
+  obj.foreground_points = slab_points(cam, 250, 329, 80, 295, 1.5);
+  obj.background_points = slab_points(cam, 200, 379, 300, 479, 1.0);
+  const auto region = [&](int u0, int u1, int v0, int v1) {
+    return [=, &feats](std::size_t i) {
+      const cv::Point2f& p = feats.keypoints[i].pt;
+      return p.x >= static_cast<float>(u0) && p.x <= static_cast<float>(u1) &&
+             p.y >= static_cast<float>(v0) && p.y <= static_cast<float>(v1);
+    };
+  };
+  const auto person = region(256, 324, 86, 294);  // visible above the desk, off the edges
+  const auto desk = region(206, 374, 306, 474);
+  const auto count = [&](const std::vector<std::uint8_t>& m, const auto& where) {
+    return count_on(m, grid, where);
+  };
+
+  // The box filter alone: the desk in front is the foreground, the person mostly is not.
+  ds3d::slam::HdbscanMasker plain;
+  const auto m0 = plain.mask(f, cam, feats, obj);
+  const auto [desk_on0, desk_n] = count(m0, desk);
+  const auto [person_on0, person_n] = count(m0, person);
+  ASSERT_GT(desk_n, 100);
+  ASSERT_GT(person_n, 80);
+  EXPECT_EQ(desk_on0, desk_n);
+  EXPECT_LT(person_on0, person_n / 2);
+  const auto& gated = plain.last_result().gated;
+  ASSERT_EQ(gated.size(), feats.size());
+  for (std::size_t i = 0; i < grid; ++i) {
+    if (person(i) || desk(i)) {
+      EXPECT_EQ(gated[i], 1) << "in the box with depth in its range";
+    }
+    if (feats.keypoints[i].pt.x < 150.0F) {
+      EXPECT_EQ(gated[i], 0) << "the wall is outside the box";
+    }
+  }
+
+  // Segmented: the person's gated keypoints become dynamic, the desk's static.
+  obj.boxes_3d_segmented.push_back(1);
+  ds3d::slam::HdbscanMasker masker;
+  const auto m = masker.mask(f, cam, feats, obj);
+  EXPECT_EQ(count(m, person).first, person_n);
+  EXPECT_EQ(count(m, desk).first, 0);
+  EXPECT_GE(masker.last_added(), static_cast<std::size_t>(person_n - person_on0));
+  EXPECT_GE(masker.last_vetoed(), static_cast<std::size_t>(desk_n));
+  // Without colour the hole keypoint at u 250 takes the window's median, the wall's depth.
+  EXPECT_EQ(m[grid], 0);
+  EXPECT_EQ(m[grid + 1], 0);
+  // With colour it takes the person's depth (red like the person's side); u 249 stays static.
+  f.rgb = rgb;
+  ds3d::slam::HdbscanMasker coloured;
+  const auto mc = coloured.mask(f, cam, feats, obj);
+  EXPECT_EQ(mc[grid], 1);
+  EXPECT_EQ(mc[grid + 1], 0);
+  // A colour image of another size is ignored (the median again).
+  f.rgb = cv::Mat(240, 320, CV_8UC3, cv::Scalar(40, 40, 200));
+  ds3d::slam::HdbscanMasker wrong_size;
+  EXPECT_EQ(wrong_size.mask(f, cam, feats, obj)[grid], 0);
 }
 
 TEST(GeometricMotion, RejectsBadParamsAndIgnoresFramesWithoutDepth) {
