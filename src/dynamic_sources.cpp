@@ -312,8 +312,10 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
       }
       continue;
     }
-    // No depth at the keypoint.
-    if (inside(plain_rects, u, v) || !inside(seg_rects, u, v)) continue;
+    // No depth at the keypoint: checked inside segmented boxes' rectangles, and where the filter
+    // made it dynamic outside them (a region carried from the previous frame), like a dynamic
+    // keypoint with depth.
+    if (inside(plain_rects, u, v) || (!inside(seg_rects, u, v) && out[i] == 0U)) continue;
     bool dynamic = false;
     if (raw) {
       const int x = std::clamp(static_cast<int>(std::lround(u)), 0, camera.width - 1);

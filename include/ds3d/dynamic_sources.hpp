@@ -74,8 +74,9 @@ class FileSource final : public DynamicObjectSource {
 /// rectangle, depth range, support plane, solid) becomes dynamic when it lies in a segmented
 /// box's rectangle, in no unsegmented one's, and passes that test (the filter's cluster choice
 /// missed it: a desk in front took the foreground cluster, a seated person split in depth).
-/// A keypoint without depth inside a segmented box's rectangle takes a depth from the valid
-/// depths in the (2·kForegroundWindow + 1)² pixels around it (depth holes fringe object
+/// A keypoint without depth inside a segmented box's rectangle, or made dynamic by the filter
+/// outside every box's rectangle (a region carried from the previous frame), takes a depth from the
+/// valid depths in the (2·kForegroundWindow + 1)² pixels around it (depth holes fringe object
 /// silhouettes): their median or, when they split at a gap of kHoleDepthGap or more, the
 /// median of the side whose colour (the mean of its pixels nearest to the keypoint) matches
 /// the keypoint's own pixel in FrameInput::rgb best (median of all without a CV_8UC3 image of

@@ -550,3 +550,83 @@ TEST(RecordedData, TumWalkingXyzMasks) {
 // The recorded-data check of the geometric source lives in tests/slam/geometric_motion_test.cpp.
 
 }  // namespace
+
+// Corners of a camera-frame 3-D box whose image covers the pixels u0..u1 x v0..v1 at every depth
+// in [z0, z1] (each side is placed where its projection is widest).
+Eigen::Matrix<float, 8, 3> pixel_box(const ds3d::PinholeCamera& cam, int u0, int u1, int v0, int v1,
+                                     double z0, double z1) {
+  const auto side = [](double p, double centre, double f, double lo, double hi, bool upper) {
+    const double off = p - centre;
+    return static_cast<float>(off * ((off > 0) == upper ? hi : lo) / f);
+  };
+  Eigen::Matrix<float, 8, 3> c;
+  for (int i = 0; i < 8; ++i) {
+    c.row(i) << ((i & 1) ? side(u1, cam.cx, cam.fx, z0, z1, true)
+                         : side(u0, cam.cx, cam.fx, z0, z1, false)),
+        ((i & 2) ? side(v1, cam.cy, cam.fy, z0, z1, true)
+                 : side(v0, cam.cy, cam.fy, z0, z1, false)),
+        static_cast<float>((i & 4) ? z1 : z0);
+  }
+  return c;
+}
+
+// A region the filter carries from the previous frame (no detection of this frame overlaps it)
+// is checked against this frame's segmentation like a segmented box: a keypoint without depth in
+// the carried foreground rectangle whose window sees only the wall is not dynamic.
+TEST(HdbscanMasker, CarriedRegionsAreCheckedAgainstTheSegmentation) {
+  const ds3d::PinholeCamera cam;
+  cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(15000));    // wall, 3 m
+  cv::Mat(depth, cv::Rect(250, 80, 40, 400)).setTo(7500);  // person A's body, 1.5 m
+  cv::Mat(depth, cv::Rect(300, 80, 10, 250)).setTo(7500);  // A's arm; wall between, u 290-299
+  cv::Mat(depth, cv::Rect(292, 205, 5, 20)).setTo(0);      // a hole on the wall there
+  cv::Mat(depth, cv::Rect(500, 80, 60, 400)).setTo(7500);  // person B, 1.5 m
+  FrameInput f;
+  f.depth = depth;
+  ds3d::slam::OrbFeatures feats = keypoint_grid();
+  const std::size_t grid = feats.size();
+  add_keypoint(feats, 294.0F, 215.0F);
+  ds3d::Points3f a = slab_points(cam, 250, 289, 80, 479, 1.5);
+  const ds3d::Points3f arm = slab_points(cam, 300, 309, 80, 329, 1.5);
+  const ds3d::Points3f b = slab_points(cam, 500, 559, 80, 479, 1.5);
+  const auto stack = [](const ds3d::Points3f& p, const ds3d::Points3f& q) {
+    ds3d::Points3f out(p.rows() + q.rows(), 3);
+    out << p, q;
+    return out;
+  };
+  a = stack(a, arm);
+  DynamicObjects obj;
+  obj.boxes_3d.push_back(pixel_box(cam, 240, 320, 70, 479, 1.3, 1.8));
+  obj.boxes_3d_margin.push_back(0.1F);
+  obj.boxes_3d_segmented.push_back(1);
+  obj.foreground_points = a;
+  ds3d::slam::HdbscanMasker masker;
+  const auto m1 = masker.mask(f, cam, feats, obj);
+  const auto on_a = [&](std::size_t i) {
+    const cv::Point2f& p = feats.keypoints[i].pt;
+    return p.y > 90.0F &&
+           ((p.x >= 256.0F && p.x <= 284.0F) || (p.y < 320.0F && p.x >= 302.0F && p.x <= 308.0F));
+  };
+  const auto [a_on1, a_n] = count_on(m1, grid, on_a);
+  ASSERT_GT(a_n, 100);
+  EXPECT_GT(a_on1, a_n * 9 / 10);
+  EXPECT_EQ(m1[grid], 0) << "a hole on the wall inside A's box";
+
+  // Next frame, the same scene: the detector misses A and finds B; the part head still labels A.
+  obj.boxes_3d[0] = pixel_box(cam, 490, 570, 70, 479, 1.3, 1.8);
+  obj.foreground_points = stack(a, b);
+  const auto m2 = masker.mask(f, cam, feats, obj);
+  const auto& boxes = masker.last_result().boxes;
+  ASSERT_TRUE(
+      std::any_of(boxes.begin(), boxes.end(), [](const ds3d::BoxOutcome& o) { return o.carried; }));
+  EXPECT_GT(count_on(m2, grid, on_a).first, a_n * 9 / 10) << "A's region is carried";
+  EXPECT_EQ(m2[grid], 0) << "a hole on the wall inside A's carried region";
+  for (std::size_t i = 0; i < grid; ++i) {
+    const cv::Point2f& p = feats.keypoints[i].pt;
+    if (p.x >= 506.0F && p.x <= 553.0F && p.y > 90.0F) {
+      EXPECT_EQ(m2[i], 1) << "on person B at " << p.x << "," << p.y;
+    }
+    if (p.x < 240.0F || (p.x > 330.0F && p.x < 480.0F)) {
+      EXPECT_EQ(m2[i], 0) << "on the wall at " << p.x << "," << p.y;
+    }
+  }
+}
