@@ -428,6 +428,8 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
   const auto t0 = std::chrono::steady_clock::now();
   PreprocessParams pp = params_.preprocess;
   pp.num_threads = params_.num_threads;
+  // The per-pixel undistortion table is built once per camera, not per frame.
+  if (pp.depth.undistort && pp.depth.rays == nullptr) pp.depth.rays = rays_.get(camera);
   const PreprocessResult pre =
       preprocess(frame.depth.ptr<std::uint16_t>(), frame.depth.cols, frame.depth.rows,
                  static_cast<std::ptrdiff_t>(frame.depth.step1()), camera, pp);

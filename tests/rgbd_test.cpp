@@ -158,13 +158,19 @@ TEST(Rgbd, FloatDepthSkipsNanZeroAndNegative) {
   EXPECT_NEAR(r.points(3, 2), 1.5, 1e-7);
 }
 
-TEST(Rgbd, DistortionUsesUndistortedRays) {
+// A 64x48 camera without distortion.
+PinholeCamera small_camera() {
   PinholeCamera cam;
   cam.width = 64;
   cam.height = 48;
   cam.fx = cam.fy = 50;
   cam.cx = 31.5;
   cam.cy = 23.5;
+  return cam;
+}
+
+TEST(Rgbd, DistortionUsesUndistortedRays) {
+  PinholeCamera cam = small_camera();
   cam.k1 = -0.2;
   cam.p1 = 0.001;
   std::vector<std::uint16_t> d(64 * 48, 10000);
@@ -184,6 +190,42 @@ TEST(Rgbd, DistortionUsesUndistortedRays) {
   const auto plain = ds3d::depth_to_points(d.data(), 64, 48, 64, cam, p);
   EXPECT_NEAR(plain.points(0, 0), (0 - 31.5) / 50.0 * 2.0, 1e-6);
   EXPECT_GT(std::abs(plain.points(0, 0) - r.points(0, 0)), 1e-3);
+}
+
+// PixelRayCache: the same table as make_pixel_rays, built again only for another camera.
+TEST(Rgbd, PixelRayCacheRebuildsOnlyForAnotherCamera) {
+  PinholeCamera cam = small_camera();
+  ds3d::PixelRayCache cache;
+  EXPECT_EQ(cache.get(cam), nullptr) << "no table without distortion";
+  cam.k1 = -0.2;
+  const ds3d::PixelRays* a = cache.get(cam);
+  ASSERT_NE(a, nullptr);
+  const auto want = ds3d::make_pixel_rays(cam);
+  EXPECT_EQ(a->x, want.x);
+  EXPECT_EQ(a->y, want.y);
+  const std::vector<double> first_x = a->x;
+  cam.depth_scale = 1000.0;  // not part of the rays
+  EXPECT_EQ(cache.get(cam), a);
+  EXPECT_EQ(cache.get(cam)->x, first_x);
+  cam.k2 = 0.05;
+  const ds3d::PixelRays* b = cache.get(cam);
+  ASSERT_NE(b, nullptr);
+  EXPECT_EQ(b->x, ds3d::make_pixel_rays(cam).x);
+  EXPECT_NE(b->x, first_x);
+  cam.width = 32;
+  cam.cx = 15.5;
+  EXPECT_EQ(cache.get(cam)->width, 32);
+  // An invalid camera throws and leaves the cached table as it was.
+  PinholeCamera bad = cam;
+  bad.fx = -1.0;
+  EXPECT_THROW((void)cache.get(bad), ds3d::InvalidArgument);
+  EXPECT_EQ(cache.get(cam)->width, 32);
+  // depth_to_points with the cached table gives the same points as without.
+  std::vector<std::uint16_t> d(32 * 48, 10000);
+  ds3d::DepthToPointsParams p;
+  p.rays = cache.get(cam);
+  EXPECT_EQ(ds3d::depth_to_points(d.data(), 32, 48, 32, cam, p).points,
+            ds3d::depth_to_points(d.data(), 32, 48, 32, cam).points);
 }
 
 TEST(Rgbd, RejectsBadInput) {

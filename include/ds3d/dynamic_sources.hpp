@@ -229,6 +229,7 @@ class HtxSource final : public DynamicObjectSource {
   std::vector<Box3> boxes_;
   DynamicObjects last_objects_;
   HtxFrameStats stats_;
+  PixelRayCache rays_;  // undistortion table of the camera (distorted cameras only)
 };
 
 /// Two sources in sequence, 3DS-SLAM's semantic-then-geometric order: `first` runs on the frame;

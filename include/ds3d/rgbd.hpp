@@ -47,6 +47,24 @@ struct PixelRays {
 /// @note O(width · height) time and memory; call once per camera, not per frame.
 [[nodiscard]] PixelRays make_pixel_rays(const PinholeCamera& camera);
 
+/// make_pixel_rays() for the last camera seen, for code that back-projects frame after frame
+/// (a 640×480 table costs ≈ 50 ms, the back-projection itself ≈ 1 ms). Not thread-safe: one
+/// cache per thread or per source.
+class PixelRayCache {
+ public:
+  /// Rays for `camera` to pass in DepthToPointsParams::rays: rebuilt only when its size,
+  /// intrinsics or distortion differ from the previous call's (depth_scale is ignored);
+  /// nullptr for a camera without distortion (depth_to_points needs no table then). The
+  /// pointer stays valid until the next call with another camera.
+  /// @throws ds3d::InvalidArgument if the camera is invalid (the cache is left unchanged).
+  [[nodiscard]] const PixelRays* get(const PinholeCamera& camera);
+
+ private:
+  PinholeCamera camera_{};
+  PixelRays rays_{};
+  bool valid_ = false;
+};
+
 /// Region of interest in pixels; width or height 0 means "to the image border".
 struct PixelRoi {
   int u0 = 0;      ///< first column, >= 0

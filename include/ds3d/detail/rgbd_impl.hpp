@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <type_traits>
+#include <utility>
 
 #include "ds3d/rgbd.hpp"
 
@@ -41,6 +42,22 @@ inline PixelRays make_pixel_rays(const PinholeCamera& camera) {
     }
   }
   return r;
+}
+
+inline const PixelRays* PixelRayCache::get(const PinholeCamera& camera) {
+  if (!camera.has_distortion()) return nullptr;
+  const auto same = [](const PinholeCamera& a, const PinholeCamera& b) {
+    return a.fx == b.fx && a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.width == b.width &&
+           a.height == b.height && a.k1 == b.k1 && a.k2 == b.k2 && a.p1 == b.p1 && a.p2 == b.p2 &&
+           a.k3 == b.k3;
+  };
+  if (!valid_ || !same(camera, camera_)) {
+    PixelRays rays = make_pixel_rays(camera);  // throws before anything is replaced
+    rays_ = std::move(rays);
+    camera_ = camera;
+    valid_ = true;
+  }
+  return &rays_;
 }
 
 namespace detail {
