@@ -62,6 +62,9 @@ ds3d::DepthToPointsResult run(const Eigen::Ref<const Image, 0, Eigen::OuterStrid
   p.max_depth = max_depth;
   p.undistort = undistort;
   const py::gil_scoped_release release;
+  // Frame after frame of one distorted camera: the undistortion table is built once per thread.
+  thread_local ds3d::PixelRayCache rays;
+  if (undistort) p.rays = rays.get(cam);
   return ds3d::depth_to_points(depth, cam, p);
 }
 

@@ -72,6 +72,22 @@ def test_ransac_plane_finds_the_golden_plane():
     assert ds3d.ransac_plane(pts[:50].tolist(), 1).found
 
 
+def test_depth_to_points_distortion_per_call():
+    # The undistortion table is cached per camera: calls alternating between two distortions
+    # must each get their own rays.
+    d = np.full((48, 64), 10000, np.uint16)
+    kw = dict(fx=50.0, fy=50.0, cx=31.5, cy=23.5)
+    plain = ds3d.depth_to_points(d, **kw).points
+    a = ds3d.depth_to_points(d, distortion=(-0.2, 0.0, 0.001, 0.0, 0.0), **kw).points
+    b = ds3d.depth_to_points(d, distortion=(0.1, 0.0, 0.0, 0.0, 0.0), **kw).points
+    a2 = ds3d.depth_to_points(d, distortion=(-0.2, 0.0, 0.001, 0.0, 0.0), **kw).points
+    np.testing.assert_array_equal(a, a2)
+    assert abs(a[0, 0] - plain[0, 0]) > 1e-3 and abs(b[0, 0] - plain[0, 0]) > 1e-3
+    assert abs(a[0, 0] - b[0, 0]) > 1e-3
+    off = ds3d.depth_to_points(d, distortion=(-0.2, 0.0, 0.001, 0.0, 0.0), undistort=False, **kw)
+    np.testing.assert_array_equal(off.points, plain)
+
+
 def test_depth_to_points_matches_golden_rows():
     d = DATA / "depth_640x480"
     intr = json.loads((d / "intrinsics.json").read_text())
