@@ -164,7 +164,9 @@ TEST(RansacPlane, ConfidenceOneRunsEveryIteration) {
 
 TEST(RansacPlane, SameSeedSameResultForAnyThreadCount) {
   ds3d::test::Rng rng(61);
-  const auto s = ds3d::test::moving_object_scene(20'000, 3000, 0.5, 3);
+  // Large enough for the threaded path (smaller clouds always run on one thread).
+  const auto s =
+      ds3d::test::moving_object_scene(ds3d::kRansacParallelMinPoints + 20'000, 3000, 0.5, 3);
   RansacPlaneParams p;
   p.confidence = 0.99;
   p.seed = 7;

@@ -52,6 +52,12 @@ struct RansacPlaneParams {
   void validate() const;
 };
 
+/// ransac_plane() scores hypotheses on `num_threads` threads only for clouds of at least this
+/// many finite points; smaller clouds score a batch faster than its threads start, and run on
+/// one (2-vCPU AMD EPYC, 1,000 hypotheses: 5,000 points 0.65 ms on one thread against 4.6 ms on
+/// two, 50,000 points 6.4 against 8.8 ms, 100,000 points equal; docs/benchmarks.md).
+inline constexpr std::size_t kRansacParallelMinPoints = 100000;
+
 /// Output of ransac_plane().
 struct RansacPlaneResult {
   bool found = false;  ///< false: fewer than 3 finite points, or every triple was degenerate

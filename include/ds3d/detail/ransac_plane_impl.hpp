@@ -116,7 +116,10 @@ RansacPlaneResult ransac_plane(const C& cloud, const RansacPlaneParams& params) 
   };
 
   const std::uint32_t max_it = params.max_iterations;
-  const std::size_t batch = threads == 1 ? 1 : static_cast<std::size_t>(threads) * 8;
+  // Threads are started per batch of hypotheses: below kRansacParallelMinPoints a batch scores
+  // faster than its threads start, so small clouds run serially (same output either way).
+  const int workers = n < kRansacParallelMinPoints ? 1 : threads;
+  const std::size_t batch = workers == 1 ? 1 : static_cast<std::size_t>(workers) * 8;
   std::vector<std::int64_t> scores(batch);
   std::int64_t best_count = -1;
   std::uint32_t best_it = 0;
@@ -125,7 +128,7 @@ RansacPlaneResult ransac_plane(const C& cloud, const RansacPlaneParams& params) 
   bool stop = false;
   while (!stop && it < max_it) {
     const std::size_t nb = std::min<std::size_t>(batch, max_it - it);
-    detail::parallel_chunks(nb, nb, threads, [&](std::size_t b, std::size_t e, std::size_t) {
+    detail::parallel_chunks(nb, nb, workers, [&](std::size_t b, std::size_t e, std::size_t) {
       for (std::size_t k = b; k < e; ++k) {
         Eigen::Vector4d pl;
         if (!hypothesis(it + static_cast<std::uint32_t>(k), pl)) {
