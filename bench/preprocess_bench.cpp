@@ -26,6 +26,29 @@ void BM_DepthToPoints(benchmark::State& state) {
 }
 BENCHMARK(BM_DepthToPoints)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// A distorted camera (Bonn's k1, k2): Arg 0 builds the ray table in every call (no
+// DepthToPointsParams::rays), Arg 1 takes it from a PixelRayCache, as HtxSource does.
+void BM_DepthToPointsDistorted(benchmark::State& state) {
+  const auto& f = frame();
+  ds3d::PinholeCamera cam = f.camera;
+  cam.k1 = 0.04;
+  cam.k2 = -0.1;
+  ds3d::PixelRayCache cache;
+  ds3d::DepthToPointsParams p;
+  for (auto _ : state) {
+    if (state.range(0) != 0) p.rays = cache.get(cam);
+    const auto r = ds3d::depth_to_points(f.depth.data(), 640, 480, 640, cam, p);
+    benchmark::DoNotOptimize(r.points.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * 640 * 480);
+}
+BENCHMARK(BM_DepthToPointsDistorted)
+    ->ArgName("cached")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
 void BM_Preprocess(benchmark::State& state) {
   const auto& f = frame();
   ds3d::PreprocessParams p;
