@@ -350,6 +350,14 @@ void HtxSourceParams::validate() const {
   DS3D_CHECK(std::isfinite(foreground_radius) && foreground_radius > 0.0F,
              "ds3d::slam::HtxSourceParams: foreground_radius must be finite and > 0 (got ",
              foreground_radius, ")");
+  DS3D_CHECK(hold_frames >= 0, "ds3d::slam::HtxSourceParams: hold_frames must be >= 0 (got ",
+             hold_frames, ")");
+  DS3D_CHECK(hold_min_points >= 1,
+             "ds3d::slam::HtxSourceParams: hold_min_points must be >= 1 (got ", hold_min_points,
+             ")");
+  DS3D_CHECK(std::isfinite(hold_seconds) && hold_seconds >= 0.0,
+             "ds3d::slam::HtxSourceParams: hold_seconds must be finite and >= 0 (got ",
+             hold_seconds, ")");
 }
 
 namespace {
@@ -483,13 +491,8 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
   }
   stats_.detect_ms = ms_since(t1);
   stats_.detected = true;
-  const Eigen::Matrix3d R_cam_up = R_up_cam_.cast<double>().transpose();
-  for (const Box3& b : boxes) {
-    if (!(b.score >= params_.min_score)) continue;  // also drops a NaN score
-    if (!labels_.empty() && std::find(labels_.begin(), labels_.end(), b.label) == labels_.end()) {
-      continue;
-    }
-    if (!b.centre.allFinite() || !b.size.allFinite() || !std::isfinite(b.yaw)) continue;
+  const auto report = [&](const Box3& b, const Eigen::Matrix3f& R_up_cam) {
+    const Eigen::Matrix3d R_cam_up = R_up_cam.cast<double>().transpose();
     Eigen::Matrix<float, 8, 3> corners;
     const auto up_corners = box::corners(b);
     for (int k = 0; k < 8; ++k) {
@@ -499,10 +502,71 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     last_objects_.boxes_3d.push_back(corners);
     last_objects_.boxes_3d_margin.push_back(params_.box_uncertainty);
     if (segment) last_objects_.boxes_3d_segmented.push_back(1);
+  };
+  for (const Box3& b : boxes) {
+    if (!(b.score >= params_.min_score)) continue;  // also drops a NaN score
+    if (!labels_.empty() && std::find(labels_.begin(), labels_.end(), b.label) == labels_.end()) {
+      continue;
+    }
+    if (!b.centre.allFinite() || !b.size.allFinite() || !std::isfinite(b.yaw)) continue;
+    report(b, R_up_cam_);
     boxes_.push_back(b);
   }
   stats_.num_boxes = boxes_.size();
+  if (!segment || params_.hold_frames == 0) return last_objects_;
+  // Carry the held boxes that no box of this frame continues while the segmentation still sees
+  // foreground in them; then hold this frame's boxes.
+  const Points3f& fg = last_objects_.foreground_points;
+  std::vector<HeldBox> held;
+  for (const Box3& b : boxes_) {
+    // A box without foreground support is not held (nothing to follow it by).
+    const auto [centroid, count] = foreground_in(b, R_up_cam_, fg);
+    if (count >= params_.hold_min_points) {
+      held.push_back({b, R_up_cam_, centroid, frame.timestamp, 0});
+    }
+  }
+  for (HeldBox h : held_) {
+    const double dt = frame.timestamp - h.timestamp;
+    if (h.age >= params_.hold_frames || !(dt >= 0.0 && dt <= params_.hold_seconds)) continue;
+    // Continued: a box of this frame has its centre within half this box's largest horizontal
+    // size (the detector reported the object again at about the same place). Other held boxes
+    // are not merged: the boxes of a person from consecutive frames often each cover only a part
+    // of them, and their union gates more of the person (the segmentation decides inside).
+    const Eigen::Vector3f c_cam = h.R_up_cam.transpose() * h.box.centre;
+    const float reach = 0.5F * std::max(h.box.size.x(), h.box.size.y());
+    const bool continued = std::any_of(boxes_.begin(), boxes_.end(), [&](const Box3& b) {
+      return (R_up_cam_.transpose() * b.centre - c_cam).norm() < reach;
+    });
+    if (continued) continue;
+    const auto [centroid, count] = foreground_in(h.box, h.R_up_cam, fg);
+    if (count < params_.hold_min_points) continue;
+    h.box.centre += h.R_up_cam * (centroid - h.fg_centroid);
+    h.fg_centroid = centroid;
+    ++h.age;
+    report(h.box, h.R_up_cam);
+    ++stats_.num_carried;
+    held.push_back(h);
+  }
+  held_ = std::move(held);
+  stats_.num_boxes += stats_.num_carried;
   return last_objects_;
+}
+
+std::pair<Eigen::Vector3f, int> HtxSource::foreground_in(const Box3& b, const Eigen::Matrix3f& R,
+                                                         const Points3f& fg) const {
+  const double grow = std::isfinite(params_.box_uncertainty) ? 2.0 * params_.box_uncertainty : 0.0;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (Eigen::Index k = 0; k < fg.rows(); ++k) {
+    const Eigen::Vector3f p = fg.row(k).transpose();
+    if (!p.allFinite()) continue;
+    if (box::contains(b, (R * p).cast<double>(), grow)) {
+      sum += p.cast<double>();
+      ++n;
+    }
+  }
+  if (n == 0) return {Eigen::Vector3f::Zero(), 0};
+  return {(sum / n).cast<float>(), n};
 }
 
 // ---- CompositeSource ---------------------------------------------------------------------------
@@ -946,7 +1010,11 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
                "' must gate a source by the geometric source's evidence (expected ", kKnown, ")");
     MotionGateParams gate = options.gate;
     gate.evidence = true;
-    return std::make_shared<MotionGatedSource>(make_dynamic_source(a, options),
+    // The evidence gate holds confirmed boxes on its own tracks; carried semantic boxes would
+    // only be tested again without a new detection (session 14: fr1_xyz 0.0115 -> 0.0123 m).
+    DynamicSourceOptions semantic = options;
+    semantic.htx.hold_frames = 0;
+    return std::make_shared<MotionGatedSource>(make_dynamic_source(a, semantic),
                                                make_dynamic_source(b, options), gate);
   }
   if (const auto amp = spec.find('&'); amp != std::string::npos) {

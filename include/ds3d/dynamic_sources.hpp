@@ -163,6 +163,21 @@ struct HtxSourceParams {
   /// default preprocess (0.1 m): a keypoint lies within about one leaf of its voxel's centroid,
   /// and the nearest foreground centroid may be the next voxel's.
   float foreground_radius = 0.2F;
+  /// Frames a box is carried after the detector reported it, >= 0 (0 = off). Needs the
+  /// segmentation (segment, SparseDetector constructor). In each later frame a held box is
+  /// reported again, after the detected ones, unless a detected box continues it (its centre
+  /// lies within half the held box's largest horizontal size) or fewer than hold_min_points
+  /// foreground points of this frame lie in it (grown by box_uncertainty per side); it moves by
+  /// the shift of their centroid. A detected box with fewer such points is not held. Held boxes
+  /// are not merged with each other: a seated person's boxes of consecutive frames often each
+  /// cover a part of them, and the masker's segmentation check decides inside their union.
+  /// Covers detection misses of people the part head still sees (docs/dynamic.md, session 14).
+  /// make_dynamic_source sets 0 under an evidence gate ("htx&&geometric").
+  int hold_frames = 10;
+  int hold_min_points = 5;  ///< foreground points that keep a carried box, >= 1
+  /// Longest time [s] a box is carried after its detection, finite, >= 0: with frames far apart
+  /// (a sparse selection of a recording) the camera-frame box no longer fits.
+  double hold_seconds = 0.5;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 
@@ -173,6 +188,7 @@ struct HtxFrameStats {
   bool ground_found = false;       ///< the gravity alignment came from this frame's floor plane
   std::size_t num_points = 0;      ///< preprocessed points (before the draw)
   std::size_t num_boxes = 0;       ///< boxes reported (after the class and score filters)
+  std::size_t num_carried = 0;     ///< of num_boxes, carried from earlier frames (hold_frames)
   double preprocess_ms = 0;        ///< wall time of preprocess + draw [ms]
   double detect_ms = 0;            ///< wall time of the network + post-processing [ms]
 };
@@ -226,7 +242,22 @@ class HtxSource final : public DynamicObjectSource {
   HtxSourceParams params_;
   Eigen::Matrix3f R_up_cam_;
   std::size_t frame_count_ = 0;
+  // A box of an earlier detection (hold_frames): in the upright frame of its detection, with that
+  // frame's camera -> upright rotation and its foreground centroid [m, camera frame].
+  struct HeldBox {
+    Box3 box;
+    Eigen::Matrix3f R_up_cam;
+    Eigen::Vector3f fg_centroid;
+    double timestamp = 0;  // [s] of the detection
+    int age = 0;           // frames since the detector reported it
+  };
+  // Foreground centroid of `fg` rows inside `b` (upright frame R) grown by box_uncertainty, and
+  // their count.
+  [[nodiscard]] std::pair<Eigen::Vector3f, int> foreground_in(const Box3& b,
+                                                              const Eigen::Matrix3f& R,
+                                                              const Points3f& fg) const;
   std::vector<Box3> boxes_;
+  std::vector<HeldBox> held_;
   DynamicObjects last_objects_;
   HtxFrameStats stats_;
   PixelRayCache rays_;  // undistortion table of the camera (distorted cameras only)
@@ -325,6 +356,13 @@ class MotionGatedSource final : public DynamicObjectSource {
   [[nodiscard]] std::size_t last_kept_by_track() const noexcept { return last_by_track_; }
   /// The parameters in use (validated).
   [[nodiscard]] const MotionGateParams& params() const noexcept { return params_; }
+  /// The semantic source (its boxes are gated) and the motion source.
+  [[nodiscard]] const std::shared_ptr<DynamicObjectSource>& semantic() const noexcept {
+    return semantic_;
+  }
+  [[nodiscard]] const std::shared_ptr<DynamicObjectSource>& motion() const noexcept {
+    return motion_;
+  }
 
  private:
   struct Track {
@@ -367,7 +405,8 @@ struct DynamicSourceOptions {
 /// "A+B" with A and B any of these but none (CompositeSource: A, then B), e.g.
 /// "htx+geometric", "A&B" (MotionGatedSource: A's boxes only where B sees motion), e.g.
 /// "htx&geometric", or "A&&geometric" (MotionGatedSource with the evidence gate, session 9), e.g.
-/// "htx&&geometric". A "file:" spec takes the rest of the string as its path.
+/// "htx&&geometric"; there A's htx source gets hold_frames = 0 (the gate's own tracks hold the
+/// boxes it confirmed). A "file:" spec takes the rest of the string as its path.
 /// @throws ds3d::InvalidArgument for an unknown name or bad options; ds3d::IoError for an
 ///   unreadable file or weights file (naming the path).
 [[nodiscard]] std::shared_ptr<DynamicObjectSource> make_dynamic_source(

@@ -215,6 +215,28 @@ def test_make_dynamic_source_builds_htx_and_composites():
     # The floor is reported only on request (report_floor, off by default).
     plain = ds3d.make_dynamic_source("htx", weights=weights, min_score=0.0)
     assert plain.detect(f["rgb"], f["depth"], f["timestamp"], CAM).support_plane is None
+    with pytest.raises(ValueError, match="hold_frames"):
+        ds3d.make_dynamic_source("htx", weights=weights, hold_frames=-1)
+
+
+def test_hold_carries_missed_boxes_of_seated_people():
+    """hold_frames (default 10): boxes of earlier frames come after this frame's detections
+    while the part head sees foreground in them; hold_frames=0 reports the detections only."""
+    import pathlib
+    weights = pathlib.Path(__file__).resolve().parents[2] / "models" / "htx_lite_fast.safetensors"
+    scene = ds3d.synth.Scene("sitting_static", frames=12, seed=7)
+    held = ds3d.make_dynamic_source("htx", weights=weights, report_floor=True)
+    plain = ds3d.make_dynamic_source("htx", weights=weights, report_floor=True, hold_frames=0)
+    carried = 0
+    for i in range(len(scene)):
+        f = scene.render(i)
+        a = plain.detect(f["rgb"], f["depth"], f["timestamp"], CAM, index=i)
+        b = held.detect(f["rgb"], f["depth"], f["timestamp"], CAM, index=i)
+        assert len(b.boxes_3d) >= len(a.boxes_3d)
+        assert np.allclose(b.boxes_3d[:len(a.boxes_3d)], a.boxes_3d)
+        assert b.boxes_3d_segmented.all() and len(b.boxes_3d_margin) == len(b.boxes_3d)
+        carried += len(b.boxes_3d) - len(a.boxes_3d)
+    assert carried > 0
 
 
 def test_segmentation_fields_and_the_masker_check():

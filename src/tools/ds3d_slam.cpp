@@ -43,8 +43,8 @@ constexpr const char* kUsage =
     "                 [--dynamic none|geometric|htx|htx+geometric|htx&geometric|htx&&geometric|\n"
     "                            file:PATH]\n"
     "                 [--weights PATH]\n"
-    "                 [--detect-every K] [--min-score S] [--floor] [--no-segment] [--max-frames "
-    "N]\n"
+    "                 [--detect-every K] [--min-score S] [--hold-frames K] [--floor]\n"
+    "                 [--no-segment] [--max-frames N]\n"
     "                 [--stats "
     "stats.json] "
     "[--viz OUT_DIR]\n"
@@ -66,10 +66,12 @@ constexpr const char* kUsage =
     "--weights: HTx weights file (default: models/htx_lite_fast.safetensors of the source tree,\n"
     "  else <prefix>/share/ds3d/models/). --detect-every K: run the detector on every K-th frame\n"
     "  (default 1; the frames between reuse its boxes). --min-score S: detector score threshold\n"
-    "  in [0, 1] (default 0.3). --floor: keypoints on the floor plane that the detector's\n"
-    "  preprocessing finds stay static (HtxSourceParams::report_floor; off by default, see\n"
-    "  docs/dynamic.md: better precision on synthetic scenes, fewer person keypoints removed on\n"
-    "  recorded ones). --no-segment: do not confirm the detector's boxes with its part head's\n"
+    "  in [0, 1] (default 0.3). --hold-frames K: carry a box the detector missed up to K frames\n"
+    "  while its part head still sees foreground in it (default 10, 0 = off). --floor:\n"
+    "  keypoints on the floor plane that the detector's preprocessing finds stay static\n"
+    "  (HtxSourceParams::report_floor; off by default, see docs/dynamic.md: better precision on\n"
+    "  synthetic scenes, fewer person keypoints removed on recorded ones). --no-segment: do not "
+    "confirm the detector's boxes with its part head's\n"
     "  foreground points (HtxSourceParams::segment, on by default since session 10).\n"
     "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
     "(blue).\n"
@@ -96,6 +98,7 @@ struct Args {
   std::filesystem::path weights;
   int detect_every = 1;
   float min_score = -1.0F;  // < 0 = the HtxSourceParams default
+  int hold_frames = -1;     // < 0 = the HtxSourceParams default
   bool floor = false;
   bool no_segment = false;
   std::size_t max_frames = 0;
@@ -174,6 +177,8 @@ Args parse(int argc, char** argv) {
         usage_error("--min-score expects a number in [0, 1] (got '" + v + "')");
       }
       a.min_score = x;
+    } else if (s == "--hold-frames") {
+      a.hold_frames = static_cast<int>(parse_int(s, value(), 0));
     } else if (s == "--floor") {
       a.floor = true;
     } else if (s == "--no-segment") {
@@ -225,10 +230,13 @@ Args parse(int argc, char** argv) {
   const bool uses_htx =
       a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
   if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor ||
-                    a.no_segment)) {
+                    a.no_segment || a.hold_frames >= 0)) {
     usage_error(
-        "--weights, --detect-every, --min-score, --floor and --no-segment need --dynamic htx or "
-        "htx+...");
+        "--weights, --detect-every, --min-score, --hold-frames, --floor and --no-segment need "
+        "--dynamic htx or htx+...");
+  }
+  if (a.hold_frames >= 0 && a.dynamic.find("&&") != std::string::npos) {
+    usage_error("--hold-frames has no effect with --dynamic A&&geometric (its tracks hold boxes)");
   }
   return a;
 }
@@ -315,6 +323,7 @@ int run(const Args& a) {
   sopt.weights = a.weights;
   sopt.htx.detect_every = a.detect_every;
   if (a.min_score >= 0.0F) sopt.htx.min_score = a.min_score;
+  if (a.hold_frames >= 0) sopt.htx.hold_frames = a.hold_frames;
   sopt.htx.report_floor = a.floor;
   sopt.htx.segment = !a.no_segment;
   std::shared_ptr<ds3d::slam::DynamicObjectSource> source;

@@ -21,6 +21,9 @@
 // drops DynamicObjects::background_points (the radius rule alone, as in session 10), and
 // DS3D_GEOM_TEST_ORACLE_FG=1 replaces the segmentation by the generator's mask (every 4th pixel
 // with depth, on the mask = foreground, else background), the ceiling of the segmented masker.
+// Session 14: DS3D_GEOM_TEST_HTX_HOLD=K and _HTX_HOLD_POINTS=N set HtxSourceParams::hold_frames
+// and hold_min_points; DS3D_GEOM_TEST_FP_STATS=1 prints one line per false positive (distance to
+// the nearest person pixel, depth or not, octave) and per miss (inside an image box or not).
 #include "ds3d/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
@@ -103,6 +106,12 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
     opt.htx.segment = std::getenv("DS3D_GEOM_TEST_NO_SEGMENT") == nullptr;
     if (const char* r = std::getenv("DS3D_GEOM_TEST_FG_RADIUS"); r != nullptr) {
       opt.htx.foreground_radius = std::stof(r);
+    }
+    if (const char* h = std::getenv("DS3D_GEOM_TEST_HTX_HOLD"); h != nullptr) {
+      opt.htx.hold_frames = std::stoi(h);
+    }
+    if (const char* h = std::getenv("DS3D_GEOM_TEST_HTX_HOLD_POINTS"); h != nullptr) {
+      opt.htx.hold_min_points = std::stoi(h);
     }
     if (const char* a = std::getenv("DS3D_GEOM_TEST_GATE_ALPHA"); a != nullptr) {
       opt.gate.alpha = std::stod(a);
@@ -245,8 +254,40 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
       c.mask_on += on;
       c.mask_off += cv::countNonZero(obj.pixel_mask) - on;
     }
+    static const bool fp_stats = std::getenv("DS3D_GEOM_TEST_FP_STATS") != nullptr;
+    cv::Mat dist_to_mask;
+    if (fp_stats && !f.truth.empty()) {
+      cv::Mat off = f.truth == 0;
+      cv::distanceTransform(off, dist_to_mask, cv::DIST_L2, 3);
+    }
     for (std::size_t k = 0; k < m.size(); ++k) {
       const bool pred = m[k] != 0U;
+      if (fp_stats && !f.truth.empty()) {
+        const int u =
+            std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.x)), 0, f.truth.cols - 1);
+        const int v =
+            std::clamp(static_cast<int>(std::lround(feats.keypoints[k].pt.y)), 0, f.truth.rows - 1);
+        const float d = dist_to_mask.at<float>(v, u);
+        if (pred && d > 0) {
+          const bool has_depth = f.input.depth.at<std::uint16_t>(v, u) != 0U;
+          std::cout << "FP d "
+                    << (d <= 2    ? "<=2"
+                        : d <= 5  ? "3-5"
+                        : d <= 10 ? "6-10"
+                                  : ">10")
+                    << " depth " << has_depth << " oct " << feats.keypoints[k].octave << "\n";
+        }
+        if (!pred && d == 0) {
+          bool in_box = false;
+          for (const auto& b : ds3d::slam::image_boxes(obj, cam)) {
+            in_box = in_box ||
+                     (feats.keypoints[k].pt.x >= b.x_min && feats.keypoints[k].pt.x <= b.x_max &&
+                      feats.keypoints[k].pt.y >= b.y_min && feats.keypoints[k].pt.y <= b.y_max);
+          }
+          std::cout << "FN inbox " << in_box << " depth "
+                    << (f.input.depth.at<std::uint16_t>(v, u) != 0U) << "\n";
+        }
+      }
       c.keypoints += 1;
       c.dynamic += pred ? 1 : 0;
       if (f.truth.empty()) continue;

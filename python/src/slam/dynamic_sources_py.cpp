@@ -390,8 +390,9 @@ void bind_dynamic_sources(py::module_& m) {
       "make_dynamic_source",
       [](const std::string& spec, const py::object& weights, int detect_every,
          std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor,
-         bool segment) {
+         bool segment, std::optional<int> hold_frames) {
         ds3d::slam::DynamicSourceOptions o;
+        if (hold_frames) o.htx.hold_frames = *hold_frames;
         o.weights = pu::path_from(weights);
         o.htx.detect_every = detect_every;
         if (min_score) o.htx.min_score = *min_score;
@@ -403,6 +404,7 @@ void bind_dynamic_sources(py::module_& m) {
       py::arg("spec"), py::arg("weights") = "", py::arg("detect_every") = 1,
       py::arg("min_score") = py::none(), py::arg("box_uncertainty") = py::none(),
       py::arg("report_floor") = false, py::arg("segment") = true,
+      py::arg("hold_frames") = py::none(),
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric'), 'A&B' (A's boxes only where B sees\n"
       "motion, e.g. 'htx&geometric') or 'A&&geometric' (A's boxes where the geometric source's\n"
@@ -410,7 +412,9 @@ void bind_dynamic_sources(py::module_& m) {
       "weights = htx weights file ('' = the default model), "
       "detect_every\n"
       ">= 1, min_score in [0, 1] and box_uncertainty [m] (>= 0 or inf), report_floor and segment\n"
-      "(the part head's foreground confirms the boxes' keypoints; default on) for htx. "
+      "(the part head's foreground confirms the boxes' keypoints; default on) and hold_frames\n"
+      "(>= 0, default 10: carry a missed box while the part head sees foreground in it; set to\n"
+      "0 under 'A&&geometric') for htx. "
       "ValueError for\n"
       "an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");
