@@ -356,10 +356,11 @@ class MotionGatedSource final : public DynamicObjectSource {
   [[nodiscard]] std::size_t last_kept_by_track() const noexcept { return last_by_track_; }
   /// The parameters in use (validated).
   [[nodiscard]] const MotionGateParams& params() const noexcept { return params_; }
-  /// The semantic source (its boxes are gated) and the motion source.
+  /// The semantic source (its boxes are gated).
   [[nodiscard]] const std::shared_ptr<DynamicObjectSource>& semantic() const noexcept {
     return semantic_;
   }
+  /// The motion source (it gates the semantic boxes).
   [[nodiscard]] const std::shared_ptr<DynamicObjectSource>& motion() const noexcept {
     return motion_;
   }

@@ -270,7 +270,7 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
         const float d = dist_to_mask.at<float>(v, u);
         if (pred && d > 0) {
           const bool has_depth = f.input.depth.at<std::uint16_t>(v, u) != 0U;
-          std::cout << "FP d "
+          std::cout << "FP " << tag << " " << i << " d "
                     << (d <= 2    ? "<=2"
                         : d <= 5  ? "3-5"
                         : d <= 10 ? "6-10"
