@@ -23,7 +23,8 @@
 // with depth, on the mask = foreground, else background), the ceiling of the segmented masker.
 // Session 14: DS3D_GEOM_TEST_HTX_HOLD=K and _HTX_HOLD_POINTS=N set HtxSourceParams::hold_frames
 // and hold_min_points; DS3D_GEOM_TEST_FP_STATS=1 prints one line per false positive (distance to
-// the nearest person pixel, depth or not, octave) and per miss (inside an image box or not).
+// the nearest person pixel, depth or not, octave) and per miss (inside an image box or not,
+// depth or not, dynamic after the box filter, gated by a box's solid).
 #include "ds3d/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
@@ -284,8 +285,11 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
                      (feats.keypoints[k].pt.x >= b.x_min && feats.keypoints[k].pt.x <= b.x_max &&
                       feats.keypoints[k].pt.y >= b.y_min && feats.keypoints[k].pt.y <= b.y_max);
           }
-          std::cout << "FN inbox " << in_box << " depth "
-                    << (f.input.depth.at<std::uint16_t>(v, u) != 0U) << "\n";
+          const auto& fr = masker.last_result();
+          std::cout << "FN " << tag << " inbox " << in_box << " depth "
+                    << (f.input.depth.at<std::uint16_t>(v, u) != 0U) << " filter "
+                    << static_cast<int>(k < fr.dynamic.size() ? fr.dynamic[k] : 0) << " gated "
+                    << static_cast<int>(k < fr.gated.size() ? fr.gated[k] : 0) << "\n";
         }
       }
       c.keypoints += 1;
