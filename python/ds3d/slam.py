@@ -9,7 +9,7 @@ __all__ = ["Slam", "SlamConfig", "run_slam"]
 
 
 def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
-             dynamic="none", weights=None, detect_every=1, min_score=None):
+             dynamic="none", weights=None, detect_every=1, min_score=None, hold_frames=None):
     """Runs the SLAM pipeline on a TUM-layout folder (rgb.txt, depth.txt).
 
     Args:
@@ -29,6 +29,9 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
             source tree, else <prefix>/share/ds3d/models/).
         detect_every: run the HTx detector on every k-th frame (k >= 1; boxes carried between).
         min_score: HTx box score threshold in [0, 1] (None: the library default, 0.3).
+        hold_frames: frames an HTx box the detector then misses is held while its part head
+            still sees foreground in it (>= 0; None: the library default, 10; ignored under
+            ``"A&&geometric"``, whose tracks hold the boxes).
 
     Returns:
         (N, 8) float64 array: timestamp tx ty tz qx qy qz qw (camera-to-world) per frame.
@@ -43,4 +46,5 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
     return _run_slam(os.fspath(dataset_dir), "" if camera is None else os.fspath(camera),
                      int(max_frames), bool(threaded), config, str(dynamic),
                      "" if weights is None else os.fspath(weights), int(detect_every),
-                     None if min_score is None else float(min_score))
+                     None if min_score is None else float(min_score),
+                     None if hold_frames is None else int(hold_frames))

@@ -20,6 +20,8 @@ def test_run_slam_with_htx_and_composite(tmp_path):
                           min_score=0.0, threaded=True)
         assert a.shape == (4, 8) and np.all(np.isfinite(a))
         assert np.array_equal(a, b)  # deterministic, threads or not
+    c = ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, min_score=0.0, hold_frames=0)
+    assert c.shape == (4, 8) and np.all(np.isfinite(c))
 
 
 def test_run_slam_bad_dynamic_options(tmp_path):
@@ -31,6 +33,8 @@ def test_run_slam_bad_dynamic_options(tmp_path):
         ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, detect_every=0)
     with pytest.raises(ValueError):
         ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, min_score=1.5)
+    with pytest.raises(ValueError, match="hold_frames"):
+        ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, hold_frames=-1)
 
 
 def test_detector_input_round_trip():

@@ -190,11 +190,13 @@ void bind_slam_frontend(py::module_& m) {
       "_run_slam",
       [](const std::string& dataset_dir, const std::string& camera, std::size_t max_frames,
          bool threaded, std::optional<FrontendConfig> config, const std::string& dynamic,
-         const std::string& weights, int detect_every, std::optional<float> min_score) {
+         const std::string& weights, int detect_every, std::optional<float> min_score,
+         std::optional<int> hold_frames) {
         ds3d::slam::DynamicSourceOptions sopt;
         sopt.weights = weights;
         sopt.htx.detect_every = detect_every;
         if (min_score) sopt.htx.min_score = *min_score;
+        if (hold_frames) sopt.htx.hold_frames = *hold_frames;
         // The source first, as ds3d-slam does: bad options fail before any image is read.
         auto source = ds3d::slam::make_dynamic_source(dynamic, sopt);
         std::shared_ptr<ds3d::slam::DynamicFeatureMasker> masker;
@@ -218,5 +220,5 @@ void bind_slam_frontend(py::module_& m) {
       py::arg("dataset_dir"), py::arg("camera") = "", py::arg("max_frames") = 0,
       py::arg("threaded") = true, py::arg("config") = py::none(), py::arg("dynamic") = "none",
       py::arg("weights") = "", py::arg("detect_every") = 1, py::arg("min_score") = py::none(),
-      "Internal: see ds3d.run_slam.");
+      py::arg("hold_frames") = py::none(), "Internal: see ds3d.run_slam.");
 }
