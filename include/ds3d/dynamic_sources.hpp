@@ -163,7 +163,8 @@ struct HtxSourceParams {
   /// default preprocess (0.1 m): a keypoint lies within about one leaf of its voxel's centroid,
   /// and the nearest foreground centroid may be the next voxel's.
   float foreground_radius = 0.2F;
-  /// Frames a box is carried after the detector reported it, >= 0 (0 = off). Needs the
+  /// Frames a box is carried after the detector reported it, >= 0 (0 = off; with detect_every
+  /// k > 1, detector runs: the frames between reuse the last result). Needs the
   /// segmentation (segment, SparseDetector constructor). In each later frame a held box is
   /// reported again, after the detected ones, unless a detected box continues it (its centre
   /// lies within half the held box's largest horizontal size) or fewer than hold_min_points
