@@ -34,6 +34,29 @@ BENCHMARK(BM_VoxelGrid)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
+// Small clouds (the first N points of the 300k frame, in pixel order, as a depth frame at a
+// coarser stride gives them) with one reused workspace: range(2) threads; range(3) = 1 forces the
+// parallel passes (parallel_min_points = 0), 0 keeps the default threshold (one thread below it).
+void BM_VoxelGridSmall(benchmark::State& state) {
+  const ds3d::Points3f& all = ds3d::bench::room_cloud(300'000);
+  const ds3d::Points3f p = all.topRows(std::min<Eigen::Index>(state.range(0), all.rows()));
+  ds3d::VoxelGridParams vp;
+  vp.leaf_size = 0.05;
+  vp.num_threads = static_cast<int>(state.range(1));
+  if (state.range(2) != 0) vp.parallel_min_points = 0;
+  ds3d::VoxelGridWorkspace ws;
+  for (auto _ : state) {
+    const auto r = ds3d::voxel_grid(p, vp, ws);
+    benchmark::DoNotOptimize(r.centroids.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * p.rows());
+}
+// Args: points, threads, forced parallel (1) or the default threshold (0).
+BENCHMARK(BM_VoxelGridSmall)
+    ->ArgsProduct({{10'000, 100'000}, {1, 2}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
 // The per-frame use: one VoxelGridWorkspace kept across calls (no scratch allocation).
 // Times voxel_grid on `p` with one reused workspace; leaf [mm] = state.range(1).
 void run_with_workspace(benchmark::State& state, const ds3d::Points3f& p) {

@@ -63,6 +63,7 @@ TEST(VoxelGrid, MatchesEveryGoldenFixture) {
           VoxelGridParams p;
           p.leaf_size = leaf_of(out);
           p.num_threads = threads;
+          p.parallel_min_points = 0;  // threads even on small clouds: test the parallel passes
           const VoxelGridResult r = ds3d::voxel_grid(pts, p);
           expect_matches_golden(r, ds3d::test::read_voxel_csv(file), file.string());
           EXPECT_EQ(r.num_non_finite, static_cast<std::size_t>(meta.at("n_points").as_int() -
@@ -231,8 +232,9 @@ TEST(VoxelGrid, VectorisedKeysMatchBruteForceOnBoundaries) {
       const Points3f p = boundary_cloud(n, leaf, 40 * leaf, rng);
       const std::string what = "n " + std::to_string(n) + " leaf " + std::to_string(leaf);
       expect_same(ds3d::voxel_grid(p, {.leaf_size = leaf}), brute_force_voxels(p, leaf), what);
-      expect_same(ds3d::voxel_grid(p, {.leaf_size = leaf, .num_threads = 3}),
-                  brute_force_voxels(p, leaf), what + " 3 threads");
+      expect_same(
+          ds3d::voxel_grid(p, {.leaf_size = leaf, .num_threads = 3, .parallel_min_points = 0}),
+          brute_force_voxels(p, leaf), what + " 3 threads");
     }
   }
 }
@@ -251,7 +253,7 @@ TEST(VoxelGrid, KeyBoundsWithNonFiniteBlocks) {
   p.row(1999) << nan, nan, nan;
   const ds3d::LeafSize leaf(0.03, 0.05, 0.07);
   expect_same(ds3d::voxel_grid(p, {.leaf_size = leaf}), brute_force_voxels(p, leaf), "1 thread");
-  expect_same(ds3d::voxel_grid(p, {.leaf_size = leaf, .num_threads = 2}),
+  expect_same(ds3d::voxel_grid(p, {.leaf_size = leaf, .num_threads = 2, .parallel_min_points = 0}),
               brute_force_voxels(p, leaf), "2 threads");
 }
 
@@ -270,8 +272,9 @@ TEST(VoxelGrid, EveryKeyWidthPathMatchesBruteForce) {
     const Points3f p = ds3d::test::uniform_box(4000, {c.lo, c.lo, c.lo}, {c.hi, c.hi, c.hi}, rng);
     const std::string what = "leaf " + std::to_string(c.leaf);
     for (const int t : {1, 2}) {
-      expect_same(ds3d::voxel_grid(p, {.leaf_size = c.leaf, .num_threads = t}),
-                  brute_force_voxels(p, c.leaf), what + " threads " + std::to_string(t));
+      expect_same(
+          ds3d::voxel_grid(p, {.leaf_size = c.leaf, .num_threads = t, .parallel_min_points = 0}),
+          brute_force_voxels(p, c.leaf), what + " threads " + std::to_string(t));
     }
   }
 }
@@ -293,8 +296,9 @@ TEST(VoxelGrid, DenseAndSparseBoxesMatchBruteForce) {
     const VoxelGridResult ref = brute_force_voxels(p, leaf);
     EXPECT_EQ(ref.num_non_finite, 7U);
     for (const int t : {1, 3}) {
-      expect_same(ds3d::voxel_grid(p, {.leaf_size = leaf, .num_threads = t}), ref,
-                  what + " threads " + std::to_string(t));
+      expect_same(
+          ds3d::voxel_grid(p, {.leaf_size = leaf, .num_threads = t, .parallel_min_points = 0}), ref,
+          what + " threads " + std::to_string(t));
     }
   }
 }
@@ -325,8 +329,9 @@ TEST(VoxelGrid, SparseRowBlocksAndFieldWidthsMatchBruteForce) {
                                     {"32-bit keys", wide}}) {
     const VoxelGridResult ref = brute_force_voxels(cloud, 0.01);
     for (const int t : {1, 3}) {
-      expect_same(ds3d::voxel_grid(cloud, {.leaf_size = 0.01, .num_threads = t}), ref,
-                  name + " threads " + std::to_string(t));
+      expect_same(
+          ds3d::voxel_grid(cloud, {.leaf_size = 0.01, .num_threads = t, .parallel_min_points = 0}),
+          ref, name + " threads " + std::to_string(t));
     }
   }
 }
@@ -385,10 +390,11 @@ TEST(VoxelGrid, SensorOrderAndShuffledTwoDigitSortMatchBruteForce) {
     EXPECT_GT(ref.num_non_finite, 50U);
     expect_same(ds3d::voxel_grid(cloud, {.leaf_size = leaf}), ref, name);
     expect_same(ds3d::voxel_grid(cloud, {.leaf_size = leaf}, ws), ref, name + " workspace");
-    expect_same(ds3d::voxel_grid(cloud, {.leaf_size = leaf, .num_threads = 3}), ref,
-                name + " 3 threads");
-    const VoxelGridResult three =
-        ds3d::voxel_grid(cloud, {.leaf_size = leaf, .min_points = 3, .num_threads = 3});
+    expect_same(
+        ds3d::voxel_grid(cloud, {.leaf_size = leaf, .num_threads = 3, .parallel_min_points = 0}),
+        ref, name + " 3 threads");
+    const VoxelGridResult three = ds3d::voxel_grid(
+        cloud, {.leaf_size = leaf, .min_points = 3, .num_threads = 3, .parallel_min_points = 0});
     const VoxelGridResult one = ds3d::voxel_grid(cloud, {.leaf_size = leaf, .min_points = 3}, ws);
     expect_same(one, three, name + " min_points 3");
     EXPECT_EQ(one.num_dropped, three.num_dropped) << name;
@@ -414,7 +420,8 @@ TEST(VoxelGrid, SameResultForAnyThreadCount) {
   const Points3f p = ds3d::test::uniform_box(50'000, {-1, -1, -1}, {1, 1, 1}, rng);
   const auto r1 = ds3d::voxel_grid(p, {.leaf_size = 0.05, .num_threads = 1});
   for (const int t : {2, 4, 7, 0}) {
-    const auto rt = ds3d::voxel_grid(p, {.leaf_size = 0.05, .num_threads = t});
+    const auto rt =
+        ds3d::voxel_grid(p, {.leaf_size = 0.05, .num_threads = t, .parallel_min_points = 0});
     EXPECT_EQ(rt.centroids, r1.centroids);  // bit-identical
     EXPECT_EQ(rt.keys, r1.keys);
     EXPECT_EQ(rt.counts, r1.counts);
@@ -431,8 +438,8 @@ TEST(VoxelGrid, WorkspaceReuseAndMinPointsAnyThreadCount) {
   for (const Points3f* p : {&big, &small, &big}) {  // grow, shrink, reuse
     const auto r1 = ds3d::voxel_grid(*p, {.leaf_size = 0.1, .min_points = 3});
     for (const int t : {1, 2, 3}) {
-      const auto rt =
-          ds3d::voxel_grid(*p, {.leaf_size = 0.1, .min_points = 3, .num_threads = t}, ws);
+      const auto rt = ds3d::voxel_grid(
+          *p, {.leaf_size = 0.1, .min_points = 3, .num_threads = t, .parallel_min_points = 0}, ws);
       EXPECT_EQ(rt.centroids, r1.centroids);
       EXPECT_EQ(rt.keys, r1.keys);
       EXPECT_EQ(rt.counts, r1.counts);

@@ -44,6 +44,12 @@ struct VoxelGridParams {
   std::uint32_t min_points = 1;                ///< voxels with fewer members are dropped, >= 1
   NonFinite on_non_finite = NonFinite::kSkip;  ///< kSkip: ignore and count; kThrow: InvalidArgument
   int num_threads = 1;                         ///< 0 = all hardware threads, < 0 is invalid
+  /// Clouds of fewer points run on one thread whatever num_threads says: each parallel pass
+  /// starts its threads anew, which costs more than it saves on small clouds (2-vCPU AMD EPYC,
+  /// BM_VoxelGridSmall, 5 cm leaf: 10,000 points 0.10 ms on one thread against 0.30 ms on two,
+  /// 100,000 points 1.07 against 1.20 ms; BM_VoxelGrid, the 300,000-point frame at 1 cm: 3.36
+  /// against 2.54 ms; docs/benchmarks.md, session 14). 0 = always num_threads.
+  std::size_t parallel_min_points = 200000;
   /// Throws ds3d::InvalidArgument naming the bad field and value.
   void validate() const;
 };

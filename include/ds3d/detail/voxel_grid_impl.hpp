@@ -931,8 +931,9 @@ template <PointCloud C>
 VoxelGridResult voxel_grid(const C& cloud, const VoxelGridParams& params, VoxelGridWorkspace& ws) {
   constexpr const char* kFn = "ds3d::voxel_grid";
   params.validate();
-  const int threads = detail::resolve_num_threads(params.num_threads, kFn);
   const std::size_t n = cloud::size(cloud);
+  const int resolved = detail::resolve_num_threads(params.num_threads, kFn);
+  const int threads = n < params.parallel_min_points ? 1 : resolved;
   DS3D_CHECK(n < std::numeric_limits<std::uint32_t>::max(), kFn,
              ": clouds are limited to 2^32 - 1 points (got ", n, ")");
   VoxelGridResult r;
