@@ -355,6 +355,9 @@ void HtxSourceParams::validate() const {
   DS3D_CHECK(hold_min_points >= 1,
              "ds3d::slam::HtxSourceParams: hold_min_points must be >= 1 (got ", hold_min_points,
              ")");
+  DS3D_CHECK(draws >= 1, "ds3d::slam::HtxSourceParams: draws must be >= 1 (got ", draws, ")");
+  DS3D_CHECK(segment_frames >= 0, "ds3d::slam::HtxSourceParams: segment_frames must be >= 0 (got ",
+             segment_frames, ")");
   DS3D_CHECK(std::isfinite(hold_seconds) && hold_seconds >= 0.0,
              "ds3d::slam::HtxSourceParams: hold_seconds must be finite and >= 0 (got ",
              hold_seconds, ")");
@@ -462,24 +465,66 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
   if (in.points.rows() == 0) return last_objects_;
   const auto t1 = std::chrono::steady_clock::now();
   std::vector<Box3> boxes;
+  std::size_t first_draw_boxes = 0;  // boxes[first_draw_boxes...] come from later draws
   const bool segment = params_.segment && static_cast<bool>(run_);
   if (segment) {
-    DetectorOutput o = run_(in.points);
-    boxes = std::move(o.boxes);
-    // Foreground: sigmoid(logit) > p  <=>  logit > log(p / (1 - p)); the rows of the drawn
-    // points give their camera-frame coordinates (a row drawn twice is kept twice: harmless).
+    // Every draw's part logits, summed per preprocessed point (a point drawn twice counts
+    // twice); the first draw's boxes, then the later draws' boxes that none kept continues.
+    const Eigen::Index n = pre.points.rows();
+    std::vector<float> sum(static_cast<std::size_t>(n), 0.0F);
+    std::vector<int> count(static_cast<std::size_t>(n), 0);
+    for (int draw = 0; draw < params_.draws; ++draw) {
+      DetectorInput extra;
+      if (draw > 0) {
+        DetectorInputParams dp = ip;
+        dp.seed = mix_seed(ip.seed, static_cast<std::size_t>(draw));
+        extra = make_detector_input(pre.points, R_up_cam_, dp);
+      }
+      const DetectorInput& d = draw == 0 ? in : extra;
+      DetectorOutput o = run_(d.points);
+      for (Eigen::Index k = 0; k < o.part_logits.rows(); ++k) {
+        const std::uint32_t row = d.rows[static_cast<std::size_t>(k)];
+        sum[row] += o.part_logits(k, 0);
+        ++count[row];
+      }
+      const std::size_t kept = boxes.size();
+      for (Box3& b : o.boxes) {
+        const bool continued = std::any_of(
+            boxes.begin(), boxes.begin() + static_cast<std::ptrdiff_t>(kept), [&](const Box3& k) {
+              return (k.centre - b.centre).norm() < 0.5F * std::max(k.size.x(), k.size.y());
+            });
+        if (draw == 0 || !continued) boxes.push_back(std::move(b));
+      }
+      if (draw == 0) first_draw_boxes = boxes.size();
+    }
+    std::vector<float> logit(static_cast<std::size_t>(n), 0.0F);
+    for (std::size_t k = 0; k < logit.size(); ++k) {
+      if (count[k] > 0) logit[k] = sum[k] / static_cast<float>(count[k]);
+    }
+    smooth_over_frames(pre.points, count, frame.timestamp, logit);
+    // Foreground: sigmoid(logit) > p  <=>  logit > log(p / (1 - p)). The first draw's points in
+    // its order (a point drawn twice is kept twice: harmless), then those only later draws
+    // took; points no draw took are left out.
     const double p = params_.foreground_min_prob;
     const auto min_logit = static_cast<float>(std::log(p / (1.0 - p)));
     std::vector<Eigen::Index> fg;
     std::vector<Eigen::Index> bg;
-    for (Eigen::Index k = 0; k < o.part_logits.rows(); ++k) {
-      (o.part_logits(k, 0) > min_logit ? fg : bg).push_back(k);
+    std::vector<std::uint8_t> in_first(static_cast<std::size_t>(n), 0);
+    const auto label = [&](Eigen::Index row) {
+      (logit[static_cast<std::size_t>(row)] > min_logit ? fg : bg).push_back(row);
+    };
+    for (const std::uint32_t row : in.rows) {
+      label(row);
+      in_first[row] = 1;
+    }
+    for (Eigen::Index k = 0; k < n; ++k) {
+      const auto kk = static_cast<std::size_t>(k);
+      if (count[kk] > 0 && in_first[kk] == 0U) label(k);
     }
     const auto gather = [&](const std::vector<Eigen::Index>& rows, Points3f& to) {
       to.resize(static_cast<Eigen::Index>(rows.size()), 3);
       for (std::size_t k = 0; k < rows.size(); ++k) {
-        to.row(static_cast<Eigen::Index>(k)) =
-            pre.points.row(static_cast<Eigen::Index>(in.rows[static_cast<std::size_t>(rows[k])]));
+        to.row(static_cast<Eigen::Index>(k)) = pre.points.row(rows[k]);
       }
     };
     gather(fg, last_objects_.foreground_points);
@@ -503,7 +548,9 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     last_objects_.boxes_3d_margin.push_back(params_.box_uncertainty);
     if (segment) last_objects_.boxes_3d_segmented.push_back(1);
   };
-  for (const Box3& b : boxes) {
+  if (!segment) first_draw_boxes = boxes.size();
+  for (std::size_t j = 0; j < boxes.size(); ++j) {
+    const Box3& b = boxes[j];
     if (!(b.score >= params_.min_score)) continue;  // also drops a NaN score
     if (!labels_.empty() && std::find(labels_.begin(), labels_.end(), b.label) == labels_.end()) {
       continue;
@@ -511,6 +558,7 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     if (!b.centre.allFinite() || !b.size.allFinite() || !std::isfinite(b.yaw)) continue;
     report(b, R_up_cam_);
     boxes_.push_back(b);
+    if (j >= first_draw_boxes) ++stats_.num_draw_boxes;
   }
   stats_.num_boxes = boxes_.size();
   if (!segment || params_.hold_frames == 0) return last_objects_;
@@ -550,6 +598,62 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
   held_ = std::move(held);
   stats_.num_boxes += stats_.num_carried;
   return last_objects_;
+}
+
+struct HtxSource::PastSegmentation {
+  explicit PastSegmentation(Points3f pts, std::vector<float> lg, double t)
+      : points(std::move(pts)),
+        logit(std::move(lg)),
+        timestamp(t),
+        adaptor{points, nullptr},
+        tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)) {}
+  Points3f points;                               // camera frame [m], finite
+  std::vector<float> logit;                      // per row of points
+  double timestamp = 0;                          // [s]
+  detail::KdTreeCloudAdaptor<Points3f> adaptor;  // the tree keeps a reference to it
+  detail::KdTree3f<Points3f> tree;
+};
+
+void HtxSource::smooth_over_frames(const Points3f& points, const std::vector<int>& count,
+                                   double timestamp, std::vector<float>& logit) {
+  if (params_.segment_frames == 0) return;
+  // Frames too old (or a timestamp going back: another sequence) leave the window.
+  while (!past_.empty() && !(timestamp - past_.front()->timestamp >= 0.0 &&
+                             timestamp - past_.front()->timestamp <= params_.hold_seconds)) {
+    past_.pop_front();
+  }
+  const auto& leaf = params_.preprocess.voxel.leaf_size;
+  const double r2 = std::pow(std::max({leaf.dx, leaf.dy, leaf.dz}), 2);
+  std::vector<std::uint32_t> rows;
+  for (Eigen::Index r = 0; r < points.rows(); ++r) {
+    if (count[static_cast<std::size_t>(r)] > 0 && points.row(r).allFinite()) {
+      rows.push_back(static_cast<std::uint32_t>(r));
+    }
+  }
+  Points3f kept(static_cast<Eigen::Index>(rows.size()), 3);
+  std::vector<float> kept_logit(rows.size());
+  std::vector<float> mean = logit;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    const std::uint32_t r = rows[k];
+    kept.row(static_cast<Eigen::Index>(k)) = points.row(r);
+    kept_logit[k] = logit[r];
+    float s = logit[r];
+    int m = 1;
+    const Eigen::Vector3f q = points.row(r).transpose();
+    for (const auto& f : past_) {
+      std::uint32_t index = 0;
+      double d2 = 0.0;
+      if (f->tree.knnSearch(q.data(), 1, &index, &d2) == 1 && d2 <= r2) {
+        s += f->logit[index];
+        ++m;
+      }
+    }
+    mean[r] = s / static_cast<float>(m);
+  }
+  logit = std::move(mean);
+  past_.push_back(
+      std::make_shared<const PastSegmentation>(std::move(kept), std::move(kept_logit), timestamp));
+  while (past_.size() > static_cast<std::size_t>(params_.segment_frames)) past_.pop_front();
 }
 
 std::pair<Eigen::Vector3f, int> HtxSource::foreground_in(const Box3& b, const Eigen::Matrix3f& R,

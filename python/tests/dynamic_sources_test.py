@@ -217,6 +217,34 @@ def test_make_dynamic_source_builds_htx_and_composites():
     assert plain.detect(f["rgb"], f["depth"], f["timestamp"], CAM).support_plane is None
     with pytest.raises(ValueError, match="hold_frames"):
         ds3d.make_dynamic_source("htx", weights=weights, hold_frames=-1)
+    with pytest.raises(ValueError, match="draws"):
+        ds3d.make_dynamic_source("htx", weights=weights, draws=0)
+    with pytest.raises(ValueError, match="segment_frames"):
+        ds3d.make_dynamic_source("htx", weights=weights, segment_frames=-1)
+
+
+def test_draws_keep_the_first_draws_boxes_and_smoothing_keeps_the_boxes():
+    """draws=2 reports the one-draw boxes first (then those only the second draw found);
+    segment_frames changes the foreground points, never the boxes."""
+    import pathlib
+    weights = pathlib.Path(__file__).resolve().parents[2] / "models" / "htx_lite_fast.safetensors"
+    scene = ds3d.synth.Scene("sitting_static", frames=6, seed=7)
+    kw = dict(weights=weights, report_floor=True, hold_frames=0)
+    one = ds3d.make_dynamic_source("htx", segment_frames=0, **kw)
+    smooth = ds3d.make_dynamic_source("htx", segment_frames=10, **kw)
+    two = ds3d.make_dynamic_source("htx", draws=2, segment_frames=0, **kw)
+    changed = 0
+    for i in range(len(scene)):
+        f = scene.render(i)
+        a, b, c = (s.detect(f["rgb"], f["depth"], f["timestamp"], CAM, index=i)
+                   for s in (one, smooth, two))
+        assert np.allclose(a.boxes_3d, b.boxes_3d)
+        assert len(c.boxes_3d) >= len(a.boxes_3d)
+        assert np.allclose(c.boxes_3d[:len(a.boxes_3d)], a.boxes_3d)
+        assert np.all(np.isfinite(b.foreground_points)) and np.all(np.isfinite(c.foreground_points))
+        changed += int(len(a.foreground_points) != len(b.foreground_points)
+                       or not np.allclose(a.foreground_points, b.foreground_points))
+    assert changed > 0  # from the second frame on, earlier frames' logits take part
 
 
 def test_hold_carries_missed_boxes_of_seated_people():

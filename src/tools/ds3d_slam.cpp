@@ -44,7 +44,7 @@ constexpr const char* kUsage =
     "                            file:PATH]\n"
     "                 [--weights PATH]\n"
     "                 [--detect-every K] [--min-score S] [--hold-frames K] [--floor]\n"
-    "                 [--no-segment] [--max-frames N]\n"
+    "                 [--no-segment] [--htx-draws N] [--segment-frames K] [--max-frames N]\n"
     "                 [--stats "
     "stats.json] "
     "[--viz OUT_DIR]\n"
@@ -72,7 +72,11 @@ constexpr const char* kUsage =
     "  (HtxSourceParams::report_floor; off by default, see docs/dynamic.md: better precision on\n"
     "  synthetic scenes, fewer person keypoints removed on recorded ones). --no-segment: do\n"
     "  not confirm the detector's boxes with its part head's foreground points\n"
-    "  (HtxSourceParams::segment, on by default since session 10).\n"
+    "  (HtxSourceParams::segment, on by default since session 10). --htx-draws N: run the\n"
+    "  network on N draws of its input per frame, average the part head over them and add the\n"
+    "  boxes the later draws find (default 1; each draw costs one network pass).\n"
+    "  --segment-frames K: average each point's part-head logit with its nearest point's (within\n"
+    "  one voxel) in each of the last K frames (default 0 = off). Both: docs/dynamic.md.\n"
     "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
     "(blue).\n"
     "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
@@ -99,6 +103,8 @@ struct Args {
   int detect_every = 1;
   float min_score = -1.0F;  // < 0 = the HtxSourceParams default
   int hold_frames = -1;     // < 0 = the HtxSourceParams default
+  int draws = 1;
+  int segment_frames = -1;  // < 0 = the HtxSourceParams default
   bool floor = false;
   bool no_segment = false;
   std::size_t max_frames = 0;
@@ -179,6 +185,10 @@ Args parse(int argc, char** argv) {
       a.min_score = x;
     } else if (s == "--hold-frames") {
       a.hold_frames = static_cast<int>(parse_int(s, value(), 0));
+    } else if (s == "--htx-draws") {
+      a.draws = static_cast<int>(parse_int(s, value(), 1));
+    } else if (s == "--segment-frames") {
+      a.segment_frames = static_cast<int>(parse_int(s, value(), 0));
     } else if (s == "--floor") {
       a.floor = true;
     } else if (s == "--no-segment") {
@@ -230,10 +240,13 @@ Args parse(int argc, char** argv) {
   const bool uses_htx =
       a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
   if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor ||
-                    a.no_segment || a.hold_frames >= 0)) {
+                    a.no_segment || a.hold_frames >= 0 || a.draws != 1 || a.segment_frames >= 0)) {
     usage_error(
-        "--weights, --detect-every, --min-score, --hold-frames, --floor and --no-segment need "
-        "--dynamic htx or htx+...");
+        "--weights, --detect-every, --min-score, --hold-frames, --floor, --no-segment, "
+        "--htx-draws and --segment-frames need --dynamic htx or htx+...");
+  }
+  if (a.no_segment && a.segment_frames > 0) {
+    usage_error("--segment-frames smooths the part head's segmentation: not with --no-segment");
   }
   if (a.hold_frames >= 0 && a.dynamic.find("&&") != std::string::npos) {
     usage_error("--hold-frames has no effect with --dynamic A&&geometric (its tracks hold boxes)");
@@ -324,6 +337,8 @@ int run(const Args& a) {
   sopt.htx.detect_every = a.detect_every;
   if (a.min_score >= 0.0F) sopt.htx.min_score = a.min_score;
   if (a.hold_frames >= 0) sopt.htx.hold_frames = a.hold_frames;
+  sopt.htx.draws = a.draws;
+  if (a.segment_frames >= 0) sopt.htx.segment_frames = a.segment_frames;
   sopt.htx.report_floor = a.floor;
   sopt.htx.segment = !a.no_segment;
   std::shared_ptr<ds3d::slam::DynamicObjectSource> source;

@@ -25,6 +25,8 @@
 // and hold_min_points; DS3D_GEOM_TEST_FP_STATS=1 prints one line per false positive (distance to
 // the nearest person pixel, depth or not, octave) and per miss (inside an image box or not,
 // depth or not, dynamic after the box filter, gated by a box's solid).
+// Session 15: DS3D_GEOM_TEST_HTX_DRAWS=N, _HTX_SEGMENT_FRAMES=K and _HTX_FG_PROB=P set
+// HtxSourceParams::draws, segment_frames and foreground_min_prob.
 #include "ds3d/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
@@ -110,6 +112,15 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
     }
     if (const char* h = std::getenv("DS3D_GEOM_TEST_HTX_HOLD"); h != nullptr) {
       opt.htx.hold_frames = std::stoi(h);
+    }
+    if (const char* d = std::getenv("DS3D_GEOM_TEST_HTX_DRAWS"); d != nullptr) {
+      opt.htx.draws = std::stoi(d);
+    }
+    if (const char* sf = std::getenv("DS3D_GEOM_TEST_HTX_SEGMENT_FRAMES"); sf != nullptr) {
+      opt.htx.segment_frames = std::stoi(sf);
+    }
+    if (const char* fp = std::getenv("DS3D_GEOM_TEST_HTX_FG_PROB"); fp != nullptr) {
+      opt.htx.foreground_min_prob = std::stof(fp);
     }
     if (const char* h = std::getenv("DS3D_GEOM_TEST_HTX_HOLD_POINTS"); h != nullptr) {
       opt.htx.hold_min_points = std::stoi(h);

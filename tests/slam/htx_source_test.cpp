@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -120,6 +121,15 @@ TEST(HtxSource, RejectsBadParamsAndUnknownClasses) {
   EXPECT_THROW(HtxSource(none, names, {.hold_min_points = 0}), ds3d::InvalidArgument);
   EXPECT_THROW(HtxSource(none, names, {.hold_seconds = -1.0}), ds3d::InvalidArgument);
   EXPECT_THROW(HtxSource(none, names, {.hold_seconds = std::nan("")}), ds3d::InvalidArgument);
+  EXPECT_THROW(HtxSource(none, names, {.draws = 0}), ds3d::InvalidArgument);
+  EXPECT_THROW(HtxSource(none, names, {.segment_frames = -1}), ds3d::InvalidArgument);
+  try {
+    HtxSource bad(none, names, {.draws = -2});
+    FAIL() << "expected InvalidArgument";
+  } catch (const ds3d::InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("draws must be >= 1 (got -2)"), std::string::npos)
+        << e.what();
+  }
   try {
     HtxSource bad(none, names, {.foreground_radius = std::nanf("")});
     FAIL() << "expected InvalidArgument";
@@ -868,6 +878,92 @@ TEST(HtxSource, HoldCarriesMissedBoxesOnPeople) {
   EXPECT_GT(static_cast<double>(covered_held), 1.05 * static_cast<double>(covered_plain));
 }
 
+// draws and segment_frames (session 15) on seated people, the shipped model, 16 frames: the
+// first draw's boxes come first and equal a one-draw source's; smoothing leaves the boxes alone;
+// both put fewer foreground points off people without losing many of those on people; a
+// timestamp going back starts the smoothing afresh.
+TEST(HtxSource, DrawsAndFrameSmoothingSharpenTheSeatedSegmentation) {
+  const fs::path weights = fs::path(DS3D_SOURCE_DIR) / "models" / "htx_lite_fast.safetensors";
+  ASSERT_TRUE(fs::exists(weights)) << weights << " is part of the source tree";
+  const auto det =
+      std::make_shared<const ds3d::SparseDetector>(ds3d::SparseDetector::load(weights));
+  ds3d::synth::SynthOptions o;
+  o.scenario = ds3d::synth::Scenario::kSittingStatic;
+  o.num_frames = 16;
+  o.seed = 7;
+  const ds3d::synth::SyntheticScene scene(o);
+  const ds3d::PinholeCamera cam = scene.options().camera;
+  const HtxSourceParams base{.report_floor = true, .hold_frames = 0, .segment_frames = 0};
+  HtxSourceParams p_smooth = base;
+  p_smooth.segment_frames = 10;
+  HtxSourceParams p_two = base;
+  p_two.draws = 2;
+  HtxSource one(det, base);
+  HtxSource smooth(det, p_smooth);
+  HtxSource two(det, p_two);
+  // Foreground points on / near (3 px) people, and all of them, per source.
+  std::array<std::size_t, 3> on{};
+  std::array<std::size_t, 3> all{};
+  std::size_t added_boxes = 0;
+  DynamicObjects first_smooth;
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    const auto fr = scene.render(i);
+    const FrameInput in = to_input(fr);
+    const DynamicObjects a = one.detect(in, cam);
+    const DynamicObjects b = smooth.detect(in, cam);
+    const DynamicObjects c = two.detect(in, cam);
+    if (i == 0) first_smooth = b;
+    ASSERT_EQ(a.boxes_3d.size(), b.boxes_3d.size()) << i;
+    for (std::size_t k = 0; k < a.boxes_3d.size(); ++k) {
+      EXPECT_TRUE(a.boxes_3d[k].isApprox(b.boxes_3d[k])) << i;
+    }
+    EXPECT_EQ(one.last_stats().num_draw_boxes, 0U);
+    ASSERT_EQ(c.boxes_3d.size(), a.boxes_3d.size() + two.last_stats().num_draw_boxes) << i;
+    for (std::size_t k = 0; k < a.boxes_3d.size(); ++k) {
+      EXPECT_TRUE(a.boxes_3d[k].isApprox(c.boxes_3d[k])) << i;
+    }
+    ASSERT_EQ(c.boxes_3d_segmented, std::vector<std::uint8_t>(c.boxes_3d.size(), 1));
+    added_boxes += two.last_stats().num_draw_boxes;
+    cv::Mat near_people;
+    cv::dilate(fr.human_id > 0, near_people, cv::Mat::ones(7, 7, CV_8U));
+    const std::array<const DynamicObjects*, 3> outs{&a, &b, &c};
+    for (std::size_t s = 0; s < 3; ++s) {
+      const Points3f& fg = outs[s]->foreground_points;
+      EXPECT_TRUE(fg.allFinite());
+      for (Eigen::Index r = 0; r < fg.rows(); ++r) {
+        const Eigen::Vector2d uv = cam.project(fg.row(r).transpose().cast<double>());
+        const int u = std::clamp(static_cast<int>(std::lround(uv.x())), 0, cam.width - 1);
+        const int v = std::clamp(static_cast<int>(std::lround(uv.y())), 0, cam.height - 1);
+        on[s] += near_people.at<std::uint8_t>(v, u) != 0U ? 1U : 0U;
+        ++all[s];
+      }
+    }
+  }
+  const auto share = [&](std::size_t s) {
+    return static_cast<double>(on[s]) / static_cast<double>(std::max<std::size_t>(all[s], 1));
+  };
+  std::cout << "foreground points on people: one draw " << share(0) << " (" << on[0] << "/"
+            << all[0] << "), smoothed " << share(1) << " (" << on[1] << "/" << all[1]
+            << "), two draws " << share(2) << " (" << on[2] << "/" << all[2] << "); boxes added by "
+            << "the second draw " << added_boxes << "\n";
+  // Foreground points off people (chair, seat): 188 with one draw, 142 smoothed, 169 with two
+  // draws when written.
+  const auto off = [&](std::size_t s) { return static_cast<double>(all[s] - on[s]); };
+  EXPECT_LE(off(1), 0.9 * off(0));
+  EXPECT_LT(off(2), off(0));
+  EXPECT_GT(share(1), share(0));
+  EXPECT_GT(share(2), share(0));
+  EXPECT_GE(static_cast<double>(on[1]), 0.85 * static_cast<double>(on[0]));
+  EXPECT_GE(static_cast<double>(on[2]), 0.85 * static_cast<double>(on[0]));
+  // An earlier timestamp (another sequence) clears the window: frame 0 again gives frame 0's
+  // segmentation, not one averaged with the frames since.
+  FrameInput again = to_input(scene.render(0));
+  again.timestamp -= 100.0;
+  const DynamicObjects r = smooth.detect(again, cam);
+  ASSERT_EQ(r.foreground_points.rows(), first_smooth.foreground_points.rows());
+  EXPECT_TRUE(r.foreground_points.isApprox(first_smooth.foreground_points));
+}
+
 TEST(Ds3dSlamCli, HtxOptions) {
   if (!fs::exists(fs::path(DS3D_BINARY_DIR) / "bin" / "ds3d-slam")) GTEST_SKIP() << "not built";
   const fs::path dir = fs::temp_directory_path() / "ds3d_htx_cli_test";
@@ -891,6 +987,11 @@ TEST(Ds3dSlamCli, HtxOptions) {
   EXPECT_EQ(run_cli(ds + " --dynamic geometric --hold-frames 3").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic 'htx&&geometric' --hold-frames 3").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic htx --hold-frames -1").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --htx-draws 0").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --segment-frames -1").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic geometric --htx-draws 2").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic geometric --segment-frames 3").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --no-segment --segment-frames 3").code, 2);
   r = run_cli(ds + " --dynamic htx+nothing");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("nothing"), std::string::npos) << r.output;

@@ -390,9 +390,12 @@ void bind_dynamic_sources(py::module_& m) {
       "make_dynamic_source",
       [](const std::string& spec, const py::object& weights, int detect_every,
          std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor,
-         bool segment, std::optional<int> hold_frames) {
+         bool segment, std::optional<int> hold_frames, int draws,
+         std::optional<int> segment_frames) {
         ds3d::slam::DynamicSourceOptions o;
         if (hold_frames) o.htx.hold_frames = *hold_frames;
+        o.htx.draws = draws;
+        if (segment_frames) o.htx.segment_frames = *segment_frames;
         o.weights = pu::path_from(weights);
         o.htx.detect_every = detect_every;
         if (min_score) o.htx.min_score = *min_score;
@@ -404,7 +407,8 @@ void bind_dynamic_sources(py::module_& m) {
       py::arg("spec"), py::arg("weights") = "", py::arg("detect_every") = 1,
       py::arg("min_score") = py::none(), py::arg("box_uncertainty") = py::none(),
       py::arg("report_floor") = false, py::arg("segment") = true,
-      py::arg("hold_frames") = py::none(),
+      py::arg("hold_frames") = py::none(), py::arg("draws") = 1,
+      py::arg("segment_frames") = py::none(),
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric'), 'A&B' (A's boxes only where B sees\n"
       "motion, e.g. 'htx&geometric') or 'A&&geometric' (A's boxes where the geometric source's\n"
@@ -414,7 +418,11 @@ void bind_dynamic_sources(py::module_& m) {
       ">= 1, min_score in [0, 1] and box_uncertainty [m] (>= 0 or inf), report_floor and segment\n"
       "(the part head's foreground confirms the boxes' keypoints; default on) and hold_frames\n"
       "(>= 0, default 10: carry a missed box while the part head sees foreground in it; set to\n"
-      "0 under 'A&&geometric') for htx. "
+      "0 under 'A&&geometric'), draws (>= 1, default 1: network passes on different input\n"
+      "draws per frame, part head averaged, later draws' new boxes added) and segment_frames\n"
+      "(>= 0, default 0 = off: average each point's part-head logit with its nearest point's in "
+      "the\n"
+      "last frames; docs/dynamic.md, session 15) for htx. "
       "ValueError for\n"
       "an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");
