@@ -787,21 +787,31 @@ CliResult run_cli(const std::string& args) {
   return r;
 }
 
+// The shipped HTx model (models/htx_lite_fast.safetensors), or null when it is missing.
+std::shared_ptr<const ds3d::SparseDetector> shipped_detector() {
+  const fs::path weights = fs::path(DS3D_SOURCE_DIR) / "models" / "htx_lite_fast.safetensors";
+  if (!fs::exists(weights)) return nullptr;
+  return std::make_shared<const ds3d::SparseDetector>(ds3d::SparseDetector::load(weights));
+}
+
+// sitting_static, seed 7, `frames` frames.
+ds3d::synth::SyntheticScene seated_scene(int frames) {
+  ds3d::synth::SynthOptions o;
+  o.scenario = ds3d::synth::Scenario::kSittingStatic;
+  o.num_frames = frames;
+  o.seed = 7;
+  return ds3d::synth::SyntheticScene(o);
+}
+
 // hold_frames: on seated people, whom the shipped detector misses in some frames or covers only
 // in part, a box the detector reported is carried while the part head still sees foreground in
 // it. The detected boxes come first and are those of a source without the hold; the foreground
 // that keeps a carried box lies mostly on people; a box is carried at most hold_frames frames
 // and hold_seconds; the carried boxes cover person pixels the detections alone miss.
 TEST(HtxSource, HoldCarriesMissedBoxesOnPeople) {
-  const fs::path weights = fs::path(DS3D_SOURCE_DIR) / "models" / "htx_lite_fast.safetensors";
-  ASSERT_TRUE(fs::exists(weights)) << weights << " is part of the source tree";
-  const auto det =
-      std::make_shared<const ds3d::SparseDetector>(ds3d::SparseDetector::load(weights));
-  ds3d::synth::SynthOptions o;
-  o.scenario = ds3d::synth::Scenario::kSittingStatic;
-  o.num_frames = 24;
-  o.seed = 7;
-  const ds3d::synth::SyntheticScene scene(o);
+  const auto det = shipped_detector();
+  ASSERT_NE(det, nullptr) << "models/htx_lite_fast.safetensors is part of the source tree";
+  const ds3d::synth::SyntheticScene scene = seated_scene(24);
   const ds3d::PinholeCamera cam = scene.options().camera;
   HtxSource plain(det, {.report_floor = true, .hold_frames = 0});
   HtxSource held(det, {.report_floor = true, .hold_frames = 10});
@@ -883,15 +893,9 @@ TEST(HtxSource, HoldCarriesMissedBoxesOnPeople) {
 // both put fewer foreground points off people without losing many of those on people; a
 // timestamp going back starts the smoothing afresh.
 TEST(HtxSource, DrawsAndFrameSmoothingSharpenTheSeatedSegmentation) {
-  const fs::path weights = fs::path(DS3D_SOURCE_DIR) / "models" / "htx_lite_fast.safetensors";
-  ASSERT_TRUE(fs::exists(weights)) << weights << " is part of the source tree";
-  const auto det =
-      std::make_shared<const ds3d::SparseDetector>(ds3d::SparseDetector::load(weights));
-  ds3d::synth::SynthOptions o;
-  o.scenario = ds3d::synth::Scenario::kSittingStatic;
-  o.num_frames = 16;
-  o.seed = 7;
-  const ds3d::synth::SyntheticScene scene(o);
+  const auto det = shipped_detector();
+  ASSERT_NE(det, nullptr) << "models/htx_lite_fast.safetensors is part of the source tree";
+  const ds3d::synth::SyntheticScene scene = seated_scene(16);
   const ds3d::PinholeCamera cam = scene.options().camera;
   const HtxSourceParams base{.report_floor = true, .hold_frames = 0, .segment_frames = 0};
   HtxSourceParams p_smooth = base;
