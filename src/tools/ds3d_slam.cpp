@@ -245,8 +245,10 @@ Args parse(int argc, char** argv) {
         "--weights, --detect-every, --min-score, --hold-frames, --floor, --no-segment, "
         "--htx-draws and --segment-frames need --dynamic htx or htx+...");
   }
-  if (a.no_segment && a.segment_frames > 0) {
-    usage_error("--segment-frames smooths the part head's segmentation: not with --no-segment");
+  if (a.no_segment && (a.segment_frames > 0 || a.draws != 1)) {
+    usage_error(
+        "--segment-frames and --htx-draws average the part head's segmentation: not with "
+        "--no-segment");
   }
   if (a.hold_frames >= 0 && a.dynamic.find("&&") != std::string::npos) {
     usage_error("--hold-frames has no effect with --dynamic A&&geometric (its tracks hold boxes)");

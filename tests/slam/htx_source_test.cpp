@@ -996,6 +996,7 @@ TEST(Ds3dSlamCli, HtxOptions) {
   EXPECT_EQ(run_cli(ds + " --dynamic geometric --htx-draws 2").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic geometric --segment-frames 3").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic htx --no-segment --segment-frames 3").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --no-segment --htx-draws 2").code, 2);
   r = run_cli(ds + " --dynamic htx+nothing");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("nothing"), std::string::npos) << r.output;
