@@ -395,6 +395,14 @@ std::uint64_t mix_seed(std::uint64_t seed, std::size_t index) {
   return z ^ (z >> 31U);
 }
 
+// Whether a box centred at `centre` continues `kept`, centred at `kept_centre` in the same frame:
+// the centre lies within half kept's largest horizontal size (the detector reported the object
+// again at about the same place; HtxSourceParams::hold_frames and draws).
+bool continues(const Box3& kept, const Eigen::Vector3f& kept_centre,
+               const Eigen::Vector3f& centre) {
+  return (centre - kept_centre).norm() < 0.5F * std::max(kept.size.x(), kept.size.y());
+}
+
 }  // namespace
 
 HtxSource::HtxSource(std::shared_ptr<const SparseDetector> detector, HtxSourceParams params)
@@ -489,10 +497,9 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
       }
       const std::size_t kept = boxes.size();
       for (Box3& b : o.boxes) {
-        const bool continued = std::any_of(
-            boxes.begin(), boxes.begin() + static_cast<std::ptrdiff_t>(kept), [&](const Box3& k) {
-              return (k.centre - b.centre).norm() < 0.5F * std::max(k.size.x(), k.size.y());
-            });
+        const bool continued =
+            std::any_of(boxes.begin(), boxes.begin() + static_cast<std::ptrdiff_t>(kept),
+                        [&](const Box3& k) { return continues(k, k.centre, b.centre); });
         if (draw == 0 || !continued) boxes.push_back(std::move(b));
       }
       if (draw == 0) first_draw_boxes = boxes.size();
@@ -581,9 +588,8 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     // are not merged: the boxes of a person from consecutive frames often each cover only a part
     // of them, and their union gates more of the person (the segmentation decides inside).
     const Eigen::Vector3f c_cam = h.R_up_cam.transpose() * h.box.centre;
-    const float reach = 0.5F * std::max(h.box.size.x(), h.box.size.y());
     const bool continued = std::any_of(boxes_.begin(), boxes_.end(), [&](const Box3& b) {
-      return (R_up_cam_.transpose() * b.centre - c_cam).norm() < reach;
+      return continues(h.box, c_cam, R_up_cam_.transpose() * b.centre);
     });
     if (continued) continue;
     const auto [centroid, count] = foreground_in(h.box, h.R_up_cam, fg);
