@@ -358,6 +358,9 @@ void HtxSourceParams::validate() const {
   DS3D_CHECK(draws >= 1, "ds3d::slam::HtxSourceParams: draws must be >= 1 (got ", draws, ")");
   DS3D_CHECK(segment_frames >= 0, "ds3d::slam::HtxSourceParams: segment_frames must be >= 0 (got ",
              segment_frames, ")");
+  DS3D_CHECK(std::isfinite(segment_smoothing) && segment_smoothing >= 0.0F,
+             "ds3d::slam::HtxSourceParams: segment_smoothing must be finite and >= 0 (got ",
+             segment_smoothing, ")");
   DS3D_CHECK(std::isfinite(hold_seconds) && hold_seconds >= 0.0,
              "ds3d::slam::HtxSourceParams: hold_seconds must be finite and >= 0 (got ",
              hold_seconds, ")");
@@ -403,7 +406,86 @@ bool continues(const Box3& kept, const Eigen::Vector3f& kept_centre,
   return (centre - kept_centre).norm() < 0.5F * std::max(kept.size.x(), kept.size.y());
 }
 
+// nanoflann result set collecting every neighbour within a squared radius (any nanoflann version).
+class CollectingResultSet {
+ public:
+  CollectingResultSet(double r2, std::vector<std::pair<std::uint32_t, double>>& out)
+      : r2_(r2), out_(out) {}
+  void init() { out_.clear(); }
+  [[nodiscard]] std::size_t size() const { return out_.size(); }
+  [[nodiscard]] bool full() const { return true; }
+  [[nodiscard]] double worstDist() const { return r2_; }  // NOLINT(readability-*)
+  bool addPoint(double d2, std::uint32_t index) {         // NOLINT(readability-*)
+    if (d2 <= r2_) out_.emplace_back(index, d2);
+    return true;
+  }
+
+ private:
+  double r2_;
+  std::vector<std::pair<std::uint32_t, double>>& out_;
+};
+
 }  // namespace
+
+std::vector<float> smooth_segmentation(const Points3f& points, const std::vector<float>& logits,
+                                       double kernel_width, float weight, int iterations) {
+  constexpr const char* kFn = "ds3d::slam::smooth_segmentation";
+  DS3D_CHECK(logits.size() == static_cast<std::size_t>(points.rows()), kFn,
+             ": logits must have one value per row of points (got ", logits.size(), " for ",
+             points.rows(), " rows)");
+  DS3D_CHECK(std::isfinite(kernel_width) && kernel_width > 0.0, kFn,
+             ": kernel_width must be finite and > 0 (got ", kernel_width, ")");
+  DS3D_CHECK(std::isfinite(weight) && weight >= 0.0F, kFn, ": weight must be finite and >= 0 (got ",
+             weight, ")");
+  DS3D_CHECK(iterations >= 1, kFn, ": iterations must be >= 1 (got ", iterations, ")");
+  std::vector<float> out = logits;
+  if (weight == 0.0F) return out;
+  std::vector<std::uint32_t> rows;  // the rows taking part: finite point and logit
+  for (Eigen::Index r = 0; r < points.rows(); ++r) {
+    if (points.row(r).allFinite() && std::isfinite(logits[static_cast<std::size_t>(r)])) {
+      rows.push_back(static_cast<std::uint32_t>(r));
+    }
+  }
+  if (rows.size() < 2) return out;
+  const detail::KdTreeCloudAdaptor<Points3f> adaptor{points, &rows};
+  detail::KdTree3f<Points3f> tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  tree.buildIndex();
+  // Neighbours within two kernel widths (tree indices) and their kernel weights, in CSR form.
+  std::vector<std::uint32_t> begin{0};
+  std::vector<std::uint32_t> nb;
+  std::vector<float> kw;
+  std::vector<std::pair<std::uint32_t, double>> found;
+  const double w2 = kernel_width * kernel_width;
+  for (std::uint32_t t = 0; t < rows.size(); ++t) {
+    const Eigen::Vector3f q = points.row(rows[t]).transpose();
+    CollectingResultSet rs(4.0 * w2, found);
+    rs.init();
+    tree.findNeighbors(rs, q.data(), nanoflann::SearchParams());
+    std::sort(found.begin(), found.end());  // a fixed summation order: deterministic
+    for (const auto& [j, d2] : found) {
+      if (j == t) continue;
+      nb.push_back(j);
+      kw.push_back(static_cast<float>(std::exp(-d2 / w2)));
+    }
+    begin.push_back(static_cast<std::uint32_t>(nb.size()));
+  }
+  const auto sigmoid = [](float x) { return 1.0F / (1.0F + std::exp(-x)); };
+  std::vector<float> q(rows.size());
+  for (std::size_t t = 0; t < rows.size(); ++t) q[t] = sigmoid(logits[rows[t]]);
+  std::vector<float> post(rows.size());
+  for (int it = 0; it < iterations; ++it) {
+    for (std::size_t t = 0; t < rows.size(); ++t) {
+      float msg = 0.0F;
+      for (std::uint32_t k = begin[t]; k < begin[t + 1]; ++k) {
+        msg += kw[k] * (2.0F * q[nb[k]] - 1.0F);
+      }
+      post[t] = logits[rows[t]] + weight * msg;
+    }
+    for (std::size_t t = 0; t < rows.size(); ++t) q[t] = sigmoid(post[t]);
+  }
+  for (std::size_t t = 0; t < rows.size(); ++t) out[rows[t]] = post[t];
+  return out;
+}
 
 HtxSource::HtxSource(std::shared_ptr<const SparseDetector> detector, HtxSourceParams params)
     : params_(std::move(params)), R_up_cam_(upright_rotation(Eigen::Vector3d(0.0, -1.0, 0.0))) {
@@ -509,6 +591,23 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
       if (count[k] > 0) logit[k] = sum[k] / static_cast<float>(count[k]);
     }
     smooth_over_frames(pre.points, count, frame.timestamp, logit);
+    if (params_.segment_smoothing > 0.0F) {
+      // Over the drawn points only (points no draw took have no logit).
+      std::vector<std::uint32_t> drawn;
+      for (std::size_t k = 0; k < count.size(); ++k) {
+        if (count[k] > 0) drawn.push_back(static_cast<std::uint32_t>(k));
+      }
+      Points3f pts(static_cast<Eigen::Index>(drawn.size()), 3);
+      std::vector<float> lg(drawn.size());
+      for (std::size_t k = 0; k < drawn.size(); ++k) {
+        pts.row(static_cast<Eigen::Index>(k)) = pre.points.row(drawn[k]);
+        lg[k] = logit[drawn[k]];
+      }
+      const auto& leaf = params_.preprocess.voxel.leaf_size;
+      lg = smooth_segmentation(pts, lg, std::max({leaf.dx, leaf.dy, leaf.dz}),
+                               params_.segment_smoothing);
+      for (std::size_t k = 0; k < drawn.size(); ++k) logit[drawn[k]] = lg[k];
+    }
     // Foreground: sigmoid(logit) > p  <=>  logit > log(p / (1 - p)). The first draw's points in
     // its order (a point drawn twice is kept twice: harmless), then those only later draws
     // took; points no draw took are left out.

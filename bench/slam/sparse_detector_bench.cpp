@@ -100,15 +100,17 @@ BENCHMARK(BM_HtxFrame)
     ->MinTime(1.0);
 
 // The opt-in part-head averages (session 15), fast profile, segment on: Arg 0 defaults, 1
-// segment_frames 10, 2 draws 2 and segment_frames 10. Timestamps advance 1/30 s per iteration so
+// segment_frames 10, 2 draws 2 and segment_frames 10; Arg 3 the defaults without the spatial
+// smoothing of session 16 (segment_smoothing 0). Timestamps advance 1/30 s per iteration so
 // the smoothing window stays full. Counter detect_ms as BM_HtxFrame.
 void BM_HtxFrameAveraged(benchmark::State& state) {
   ds3d::synth::SynthOptions so;
   const std::vector<ds3d::slam::FrameInput> frames = htx_frames(so);
   auto det = std::make_shared<const ds3d::SparseDetector>(detector(0));
   ds3d::slam::HtxSourceParams p{.classes = {}};
-  p.segment_frames = state.range(0) >= 1 ? 10 : 0;
-  p.draws = state.range(0) >= 2 ? 2 : 1;
+  p.segment_frames = state.range(0) == 1 || state.range(0) == 2 ? 10 : 0;
+  p.draws = state.range(0) == 2 ? 2 : 1;
+  if (state.range(0) == 3) p.segment_smoothing = 0.0F;
   ds3d::slam::HtxSource src(det, p);
   double det_ms = 0;
   std::size_t i = 0;
@@ -123,6 +125,6 @@ void BM_HtxFrameAveraged(benchmark::State& state) {
   }
   state.counters["detect_ms"] = det_ms / static_cast<double>(state.iterations());
 }
-BENCHMARK(BM_HtxFrameAveraged)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->MinTime(1.0);
+BENCHMARK(BM_HtxFrameAveraged)->DenseRange(0, 3)->Unit(benchmark::kMillisecond)->MinTime(1.0);
 
 }  // namespace

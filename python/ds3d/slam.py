@@ -10,7 +10,7 @@ __all__ = ["Slam", "SlamConfig", "run_slam"]
 
 def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
              dynamic="none", weights=None, detect_every=1, min_score=None, hold_frames=None,
-             draws=1, segment_frames=None):
+             draws=1, segment_frames=None, segment_smoothing=None):
     """Runs the SLAM pipeline on a TUM-layout folder (rgb.txt, depth.txt).
 
     Args:
@@ -37,6 +37,9 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
             the part head is averaged over them and boxes only later draws find are added.
         segment_frames: earlier frames whose part-head logits are averaged into each point's
             (nearest point within one voxel; >= 0; None: the library default, 0 = off).
+        segment_smoothing: weight of the mean-field smoothing of the part head's labels over
+            neighbouring points of the frame (finite, >= 0; None: the library default, 1;
+            0 = off).
 
     Returns:
         (N, 8) float64 array: timestamp tx ty tz qx qy qz qw (camera-to-world) per frame.
@@ -55,4 +58,5 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
                      "" if weights is None else os.fspath(weights), int(detect_every),
                      None if min_score is None else float(min_score),
                      None if hold_frames is None else int(hold_frames), int(draws),
-                     None if segment_frames is None else int(segment_frames))
+                     None if segment_frames is None else int(segment_frames),
+                     None if segment_smoothing is None else float(segment_smoothing))

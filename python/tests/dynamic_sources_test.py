@@ -221,6 +221,9 @@ def test_make_dynamic_source_builds_htx_and_composites():
         ds3d.make_dynamic_source("htx", weights=weights, draws=0)
     with pytest.raises(ValueError, match="segment_frames"):
         ds3d.make_dynamic_source("htx", weights=weights, segment_frames=-1)
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="segment_smoothing"):
+            ds3d.make_dynamic_source("htx", weights=weights, segment_smoothing=bad)
 
 
 def test_draws_keep_the_first_draws_boxes_and_smoothing_keeps_the_boxes():

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
@@ -44,7 +45,8 @@ constexpr const char* kUsage =
     "                            file:PATH]\n"
     "                 [--weights PATH]\n"
     "                 [--detect-every K] [--min-score S] [--hold-frames K] [--floor]\n"
-    "                 [--no-segment] [--htx-draws N] [--segment-frames K] [--max-frames N]\n"
+    "                 [--no-segment] [--htx-draws N] [--segment-frames K]\n"
+    "                 [--segment-smoothing W] [--max-frames N]\n"
     "                 [--stats "
     "stats.json] "
     "[--viz OUT_DIR]\n"
@@ -76,7 +78,9 @@ constexpr const char* kUsage =
     "  network on N draws of its input per frame, average the part head over them and add the\n"
     "  boxes the later draws find (default 1; each draw costs one network pass).\n"
     "  --segment-frames K: average each point's part-head logit with its nearest point's (within\n"
-    "  one voxel) in each of the last K frames (default 0 = off). Both: docs/dynamic.md.\n"
+    "  one voxel) in each of the last K frames (default 0 = off). --segment-smoothing W: weight\n"
+    "  of the spatial mean-field smoothing of the part head's labels over neighbouring points\n"
+    "  (default 1, 0 = off). All three: docs/dynamic.md.\n"
     "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
     "(blue).\n"
     "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
@@ -104,7 +108,8 @@ struct Args {
   float min_score = -1.0F;  // < 0 = the HtxSourceParams default
   int hold_frames = -1;     // < 0 = the HtxSourceParams default
   int draws = 1;
-  int segment_frames = -1;  // < 0 = the HtxSourceParams default
+  int segment_frames = -1;          // < 0 = the HtxSourceParams default
+  float segment_smoothing = -1.0F;  // < 0 = the HtxSourceParams default
   bool floor = false;
   bool no_segment = false;
   std::size_t max_frames = 0;
@@ -189,6 +194,14 @@ Args parse(int argc, char** argv) {
       a.draws = static_cast<int>(parse_int(s, value(), 1));
     } else if (s == "--segment-frames") {
       a.segment_frames = static_cast<int>(parse_int(s, value(), 0));
+    } else if (s == "--segment-smoothing") {
+      const std::string v = value();
+      char* end = nullptr;
+      const float x = std::strtof(v.c_str(), &end);
+      if (v.empty() || *end != '\0' || !(x >= 0.0F && std::isfinite(x))) {
+        usage_error("--segment-smoothing expects a finite number >= 0 (got '" + v + "')");
+      }
+      a.segment_smoothing = x;
     } else if (s == "--floor") {
       a.floor = true;
     } else if (s == "--no-segment") {
@@ -240,15 +253,16 @@ Args parse(int argc, char** argv) {
   const bool uses_htx =
       a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
   if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor ||
-                    a.no_segment || a.hold_frames >= 0 || a.draws != 1 || a.segment_frames >= 0)) {
+                    a.no_segment || a.hold_frames >= 0 || a.draws != 1 || a.segment_frames >= 0 ||
+                    a.segment_smoothing >= 0.0F)) {
     usage_error(
         "--weights, --detect-every, --min-score, --hold-frames, --floor, --no-segment, "
-        "--htx-draws and --segment-frames need --dynamic htx or htx+...");
+        "--htx-draws, --segment-frames and --segment-smoothing need --dynamic htx or htx+...");
   }
-  if (a.no_segment && (a.segment_frames > 0 || a.draws != 1)) {
+  if (a.no_segment && (a.segment_frames > 0 || a.draws != 1 || a.segment_smoothing > 0.0F)) {
     usage_error(
-        "--segment-frames and --htx-draws average the part head's segmentation: not with "
-        "--no-segment");
+        "--segment-frames, --htx-draws and --segment-smoothing act on the part head's "
+        "segmentation: not with --no-segment");
   }
   if (a.hold_frames >= 0 && a.dynamic.find("&&") != std::string::npos) {
     usage_error("--hold-frames has no effect with --dynamic A&&geometric (its tracks hold boxes)");
@@ -341,6 +355,7 @@ int run(const Args& a) {
   if (a.hold_frames >= 0) sopt.htx.hold_frames = a.hold_frames;
   sopt.htx.draws = a.draws;
   if (a.segment_frames >= 0) sopt.htx.segment_frames = a.segment_frames;
+  if (a.segment_smoothing >= 0.0F) sopt.htx.segment_smoothing = a.segment_smoothing;
   sopt.htx.report_floor = a.floor;
   sopt.htx.segment = !a.no_segment;
   std::shared_ptr<ds3d::slam::DynamicObjectSource> source;

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -629,4 +630,103 @@ TEST(HdbscanMasker, CarriedRegionsAreCheckedAgainstTheSegmentation) {
       EXPECT_EQ(m2[i], 0) << "on the wall at " << p.x << "," << p.y;
     }
   }
+}
+
+namespace {
+
+// A flat 20 x 20 grid at 0.05 m spacing (z = 2 m) with one logit per point.
+ds3d::Points3f grid_points() {
+  ds3d::Points3f p(400, 3);
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 20; ++j) {
+      p.row(i * 20 + j) << 0.05F * static_cast<float>(i), 0.05F * static_cast<float>(j), 2.0F;
+    }
+  }
+  return p;
+}
+
+}  // namespace
+
+TEST(SmoothSegmentation, RelabelsIsolatedPointsAndKeepsWellSupportedBoundaries) {
+  using ds3d::slam::smooth_segmentation;
+  const ds3d::Points3f p = grid_points();
+  // Foreground everywhere but three isolated points the "network" called background.
+  std::vector<float> lg(400, 2.0F);
+  for (const int r : {42, 205, 317}) lg[static_cast<std::size_t>(r)] = -1.0F;
+  const std::vector<float> s = smooth_segmentation(p, lg, 0.05, 1.0F);
+  ASSERT_EQ(s.size(), lg.size());
+  for (std::size_t r = 0; r < s.size(); ++r) {
+    EXPECT_TRUE(std::isfinite(s[r])) << r;
+    EXPECT_GT(s[r], 0.0F) << r;  // the isolated points join their surface
+  }
+  // Two half planes (rows i < 10 foreground, i >= 10 background, equally confident): the
+  // boundary stays where the unaries put it, and each side gets more confident.
+  std::vector<float> half(400);
+  for (int r = 0; r < 400; ++r) half[static_cast<std::size_t>(r)] = r / 20 < 10 ? 1.5F : -1.5F;
+  const std::vector<float> h = smooth_segmentation(p, half, 0.05, 1.0F);
+  for (int r = 0; r < 400; ++r) {
+    const auto k = static_cast<std::size_t>(r);
+    if (r / 20 < 10) {
+      EXPECT_GT(h[k], 0.0F) << r;
+      EXPECT_GE(h[k], half[k]) << r;
+    } else {
+      EXPECT_LT(h[k], 0.0F) << r;
+      EXPECT_LE(h[k], half[k]) << r;
+    }
+  }
+  // Weight 0: unchanged. A point with no neighbour within two kernel widths: unchanged.
+  EXPECT_EQ(smooth_segmentation(p, lg, 0.05, 0.0F), lg);
+  ds3d::Points3f far = p;
+  far.row(0) << 10.0F, 10.0F, 10.0F;
+  EXPECT_EQ(smooth_segmentation(far, lg, 0.05, 1.0F)[0], lg[0]);
+}
+
+TEST(SmoothSegmentation, NonFiniteRowsTakeNoPartAndBadArgumentsThrow) {
+  using ds3d::slam::smooth_segmentation;
+  const ds3d::Points3f p = grid_points();
+  std::vector<float> lg(400);
+  for (int r = 0; r < 400; ++r)
+    lg[static_cast<std::size_t>(r)] = std::sin(0.37F * static_cast<float>(r));
+  const std::vector<float> base = smooth_segmentation(p, lg, 0.05, 1.0F);
+  // A NaN logit keeps its value and changes nothing else; so does a NaN point, which is also
+  // nobody's neighbour: the other rows equal the run without those rows' influence.
+  std::vector<float> with_nan = lg;
+  with_nan[399] = std::nanf("");
+  ds3d::Points3f p_nan = p;
+  p_nan.row(398).setConstant(std::numeric_limits<float>::quiet_NaN());
+  const std::vector<float> s = smooth_segmentation(p_nan, with_nan, 0.05, 1.0F);
+  EXPECT_TRUE(std::isnan(s[399]));
+  EXPECT_EQ(s[398], lg[398]);
+  ds3d::Points3f p_cut = p.topRows(398);
+  const std::vector<float> cut =
+      smooth_segmentation(p_cut, std::vector<float>(lg.begin(), lg.begin() + 398), 0.05, 1.0F);
+  for (std::size_t r = 0; r < 398; ++r) EXPECT_EQ(s[r], cut[r]) << r;
+  EXPECT_EQ(smooth_segmentation(p, lg, 0.05, 1.0F), base);
+  const auto message = [&](auto&& call) {
+    try {
+      call();
+    } catch (const ds3d::InvalidArgument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no throw");
+  };
+  EXPECT_NE(message([&] {
+              (void)smooth_segmentation(p, std::vector<float>(3), 0.05, 1.0F);
+            }).find("smooth_segmentation: logits must have one value per row"),
+            std::string::npos);
+  EXPECT_NE(message([&] {
+              (void)smooth_segmentation(p, lg, 0.0, 1.0F);
+            }).find("kernel_width must be finite and > 0 (got 0)"),
+            std::string::npos);
+  EXPECT_NE(
+      message([&] { (void)smooth_segmentation(p, lg, std::nan(""), 1.0F); }).find("kernel_width"),
+      std::string::npos);
+  EXPECT_NE(message([&] {
+              (void)smooth_segmentation(p, lg, 0.05, -1.0F);
+            }).find("weight must be finite and >= 0 (got -1)"),
+            std::string::npos);
+  EXPECT_NE(message([&] {
+              (void)smooth_segmentation(p, lg, 0.05, 1.0F, 0);
+            }).find("iterations must be >= 1 (got 0)"),
+            std::string::npos);
 }

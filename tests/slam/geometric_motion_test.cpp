@@ -26,7 +26,10 @@
 // the nearest person pixel, depth or not, octave) and per miss (inside an image box or not,
 // depth or not, dynamic after the box filter, gated by a box's solid).
 // Session 15: DS3D_GEOM_TEST_HTX_DRAWS=N, _HTX_SEGMENT_FRAMES=K and _HTX_FG_PROB=P set
-// HtxSourceParams::draws, segment_frames and foreground_min_prob.
+// HtxSourceParams::draws, segment_frames and foreground_min_prob. Session 16:
+// DS3D_GEOM_TEST_HTX_SMOOTHING=W sets HtxSourceParams::segment_smoothing, and
+// DS3D_GEOM_TEST_ORACLE_RELABEL=1 relabels the source's own segmented points by the generator's
+// mask at their pixels (the ceiling of a perfect part head at the network's point resolution).
 #include "ds3d/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
@@ -119,6 +122,9 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
     if (const char* sf = std::getenv("DS3D_GEOM_TEST_HTX_SEGMENT_FRAMES"); sf != nullptr) {
       opt.htx.segment_frames = std::stoi(sf);
     }
+    if (const char* w = std::getenv("DS3D_GEOM_TEST_HTX_SMOOTHING"); w != nullptr) {
+      opt.htx.segment_smoothing = std::stof(w);
+    }
     if (const char* fp = std::getenv("DS3D_GEOM_TEST_HTX_FG_PROB"); fp != nullptr) {
       opt.htx.foreground_min_prob = std::stof(fp);
     }
@@ -167,6 +173,27 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
       obj.boxes_3d_segmented.assign(obj.boxes_3d.size(), 1);
       if (const char* r = std::getenv("DS3D_GEOM_TEST_FG_RADIUS"); r != nullptr) {
         obj.foreground_radius = std::stof(r);
+      }
+    }
+    if (std::getenv("DS3D_GEOM_TEST_ORACLE_RELABEL") != nullptr && !f.truth.empty()) {
+      std::vector<Eigen::Vector3f> pts[2];
+      for (const auto* cloud : {&obj.foreground_points, &obj.background_points}) {
+        for (Eigen::Index k = 0; k < cloud->rows(); ++k) {
+          const Eigen::Vector3f q = cloud->row(k).transpose();
+          const Eigen::Vector2d uv = cam.project(q.cast<double>());
+          const int x = static_cast<int>(std::lround(uv.x()));
+          const int y = static_cast<int>(std::lround(uv.y()));
+          const bool on = x >= 0 && y >= 0 && x < f.truth.cols && y < f.truth.rows &&
+                          f.truth.at<std::uint8_t>(y, x) != 0U;
+          pts[on ? 1 : 0].push_back(q);
+        }
+      }
+      for (int w = 0; w < 2; ++w) {
+        auto& to = w == 1 ? obj.foreground_points : obj.background_points;
+        to.resize(static_cast<Eigen::Index>(pts[w].size()), 3);
+        for (std::size_t k = 0; k < pts[w].size(); ++k) {
+          to.row(static_cast<Eigen::Index>(k)) = pts[w][k].transpose();
+        }
       }
     }
     const auto feats = orb.extract(f.input.rgb, f.input.depth, cam);

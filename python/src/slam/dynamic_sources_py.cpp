@@ -390,9 +390,10 @@ void bind_dynamic_sources(py::module_& m) {
       "make_dynamic_source",
       [](const std::string& spec, const py::object& weights, int detect_every,
          std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor,
-         bool segment, std::optional<int> hold_frames, int draws,
-         std::optional<int> segment_frames) {
+         bool segment, std::optional<int> hold_frames, int draws, std::optional<int> segment_frames,
+         std::optional<float> segment_smoothing) {
         ds3d::slam::DynamicSourceOptions o;
+        if (segment_smoothing) o.htx.segment_smoothing = *segment_smoothing;
         if (hold_frames) o.htx.hold_frames = *hold_frames;
         o.htx.draws = draws;
         if (segment_frames) o.htx.segment_frames = *segment_frames;
@@ -408,7 +409,7 @@ void bind_dynamic_sources(py::module_& m) {
       py::arg("min_score") = py::none(), py::arg("box_uncertainty") = py::none(),
       py::arg("report_floor") = false, py::arg("segment") = true,
       py::arg("hold_frames") = py::none(), py::arg("draws") = 1,
-      py::arg("segment_frames") = py::none(),
+      py::arg("segment_frames") = py::none(), py::arg("segment_smoothing") = py::none(),
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric'), 'A&B' (A's boxes only where B sees\n"
       "motion, e.g. 'htx&geometric') or 'A&&geometric' (A's boxes where the geometric source's\n"
@@ -422,7 +423,9 @@ void bind_dynamic_sources(py::module_& m) {
       "draws per frame, part head averaged, later draws' new boxes added) and segment_frames\n"
       "(>= 0, default 0 = off: average each point's part-head logit with its nearest point's in "
       "the\n"
-      "last frames; docs/dynamic.md, session 15) for htx. "
+      "last frames; docs/dynamic.md, session 15) and segment_smoothing (finite, >= 0, default\n"
+      "1, 0 = off: mean-field smoothing of the part head's labels over neighbouring points;\n"
+      "session 16) for htx. "
       "ValueError for\n"
       "an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");
