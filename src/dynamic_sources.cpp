@@ -3,6 +3,7 @@
 #include "ds3d/dynamic_sources.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -406,25 +407,6 @@ bool continues(const Box3& kept, const Eigen::Vector3f& kept_centre,
   return (centre - kept_centre).norm() < 0.5F * std::max(kept.size.x(), kept.size.y());
 }
 
-// nanoflann result set collecting every neighbour within a squared radius (any nanoflann version).
-class CollectingResultSet {
- public:
-  CollectingResultSet(double r2, std::vector<std::pair<std::uint32_t, double>>& out)
-      : r2_(r2), out_(out) {}
-  void init() { out_.clear(); }
-  [[nodiscard]] std::size_t size() const { return out_.size(); }
-  [[nodiscard]] bool full() const { return true; }
-  [[nodiscard]] double worstDist() const { return r2_; }  // NOLINT(readability-*)
-  bool addPoint(double d2, std::uint32_t index) {         // NOLINT(readability-*)
-    if (d2 <= r2_) out_.emplace_back(index, d2);
-    return true;
-  }
-
- private:
-  double r2_;
-  std::vector<std::pair<std::uint32_t, double>>& out_;
-};
-
 }  // namespace
 
 std::vector<float> smooth_segmentation(const Points3f& points, const std::vector<float>& logits,
@@ -447,25 +429,35 @@ std::vector<float> smooth_segmentation(const Points3f& points, const std::vector
     }
   }
   if (rows.size() < 2) return out;
-  const detail::KdTreeCloudAdaptor<Points3f> adaptor{points, &rows};
-  detail::KdTree3f<Points3f> tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  Points3f compact(static_cast<Eigen::Index>(rows.size()), 3);  // no indirection in the tree
+  for (std::size_t t = 0; t < rows.size(); ++t) {
+    compact.row(static_cast<Eigen::Index>(t)) = points.row(rows[t]);
+  }
+  const detail::KdTreeCloudAdaptor<Points3f> adaptor{compact, nullptr};
+  detail::KdTree3f<Points3f> tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
   tree.buildIndex();
-  // Neighbours within two kernel widths (tree indices) and their kernel weights, in CSR form.
-  std::vector<std::uint32_t> begin{0};
+  // Up to kSmoothingNeighbours nearest points within two kernel widths (tree indices) and their
+  // kernel weights, in CSR form. (nanoflann visits a built tree in a fixed order, and the
+  // neighbours come sorted by distance: the sums below are deterministic.)
+  constexpr std::size_t kK = kSmoothingNeighbours + 1;  // the point itself comes first
+  std::vector<std::uint32_t> begin;
+  begin.reserve(rows.size() + 1);
+  begin.push_back(0);
   std::vector<std::uint32_t> nb;
   std::vector<float> kw;
-  std::vector<std::pair<std::uint32_t, double>> found;
+  nb.reserve(rows.size() * kSmoothingNeighbours);
+  kw.reserve(rows.size() * kSmoothingNeighbours);
+  std::array<std::uint32_t, kK> idx{};
+  std::array<double, kK> d2{};
   const double w2 = kernel_width * kernel_width;
   for (std::uint32_t t = 0; t < rows.size(); ++t) {
     const Eigen::Vector3f q = points.row(rows[t]).transpose();
-    CollectingResultSet rs(4.0 * w2, found);
-    rs.init();
-    tree.findNeighbors(rs, q.data(), nanoflann::SearchParams());
-    std::sort(found.begin(), found.end());  // a fixed summation order: deterministic
-    for (const auto& [j, d2] : found) {
-      if (j == t) continue;
-      nb.push_back(j);
-      kw.push_back(static_cast<float>(std::exp(-d2 / w2)));
+    const auto found =
+        static_cast<std::size_t>(tree.knnSearch(q.data(), kK, idx.data(), d2.data()));
+    for (std::size_t k = 0; k < found; ++k) {
+      if (idx[k] == t || d2[k] > 4.0 * w2) continue;
+      nb.push_back(idx[k]);
+      kw.push_back(static_cast<float>(std::exp(-d2[k] / w2)));
     }
     begin.push_back(static_cast<std::uint32_t>(nb.size()));
   }

@@ -129,16 +129,20 @@ class HdbscanMasker final : public DynamicFeatureMasker {
 [[nodiscard]] Keypoints3f keypoint_array(const OrbFeatures& features, const cv::Mat& depth,
                                          const PinholeCamera& camera);
 
+/// Neighbours per point of smooth_segmentation.
+inline constexpr std::size_t kSmoothingNeighbours = 12;
+
 /// Spatial smoothing of a point segmentation (HtxSourceParams::segment_smoothing): mean-field
 /// inference of a fully factorised binary conditional random field whose unaries are the
-/// foreground logits u_i and whose pairwise term links points closer than 2·kernel_width with
-/// the Gaussian kernel k_ij = exp(-d_ij² / kernel_width²). Starting from q_i = sigmoid(u_i), each
+/// foreground logits u_i and whose pairwise term links each point with its kSmoothingNeighbours
+/// nearest points closer than 2·kernel_width, with the Gaussian kernel
+/// k_ij = exp(-d_ij² / kernel_width²). Starting from q_i = sigmoid(u_i), each
 /// of `iterations` Jacobi steps sets q_i = sigmoid(u_i + weight · Σ_j k_ij (2 q_j − 1)); returns
 /// the last step's logits u_i + weight · Σ_j k_ij (2 q_j − 1). A point whose neighbours are
 /// confidently of the other label is relabelled; a boundary between two well-supported regions
 /// stays where the unaries put it. Rows with a non-finite point or logit take no part and keep
-/// their logit; weight 0 returns `logits` unchanged. Deterministic; O(n·k) per step for n points
-/// with k neighbours each (a nanoflann KD-tree finds them).
+/// their logit; weight 0 returns `logits` unchanged. Deterministic; O(n log n) for the
+/// neighbours (a nanoflann KD-tree) and O(n·kSmoothingNeighbours) per step.
 /// @param points       (n, 3) points [m], any frame.
 /// @param logits       n foreground logits, one per row of `points`.
 /// @param kernel_width Gaussian kernel width [m], finite, > 0 (HtxSource: the voxel leaf).
@@ -223,14 +227,17 @@ struct HtxSourceParams {
   /// Spatial smoothing of the segmentation, a weight >= 0, finite (0 = off; needs segment):
   /// mean-field inference of a binary conditional random field over the drawn points, the part
   /// head's (draw- and frame-averaged) logits as unaries and a Gaussian kernel
-  /// exp(-d² / leaf²) between points closer than two preprocess voxel leaves (leaf = the largest
-  /// leaf edge) as the pairwise term (smooth_segmentation with this weight and its default
-  /// iterations). A point the head labels against most of its surface neighbours is relabelled.
-  /// The weight 1 was chosen on the held-out 10 % of the part head's training scenes (point
-  /// precision / recall on frames with a seated humanoid 0.921 / 0.940 → 0.938 / 0.966, other
-  /// frames 0.930 / 0.930 → 0.953 / 0.951), not on the keypoint tables (docs/dynamic.md,
-  /// session 16).
-  float segment_smoothing = 1.0F;
+  /// exp(-d² / leaf²) between each point and its 12 nearest points closer than two preprocess
+  /// voxel leaves (leaf = the largest leaf edge) as the pairwise term (smooth_segmentation with
+  /// this weight and its default iterations). A point the head labels against most of its surface
+  /// neighbours is relabelled. Weight 1 (chosen on the held-out 10 % of the part head's
+  /// training scenes: point precision / recall on frames with a seated humanoid 0.921 / 0.940 →
+  /// 0.938 / 0.965, other frames 0.930 / 0.930 → 0.952 / 0.950) raises seated keypoint
+  /// precision on the synthetic scenes from 0.78 / 0.80 to 0.81 / 0.84 and every walker's
+  /// recall, but off by default: on the Bonn crowd ATE with `htx --floor` every weight from 0.5
+  /// to 1.5 was worse (0.0167–0.0176 m against 0.0151), with `htx` 0.0140–0.0171 against 0.0144
+  /// (docs/dynamic.md, session 16). Costs ≈ 4 ms per frame at 4,096 drawn points.
+  float segment_smoothing = 0.0F;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 

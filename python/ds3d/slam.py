@@ -38,8 +38,8 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
         segment_frames: earlier frames whose part-head logits are averaged into each point's
             (nearest point within one voxel; >= 0; None: the library default, 0 = off).
         segment_smoothing: weight of the mean-field smoothing of the part head's labels over
-            neighbouring points of the frame (finite, >= 0; None: the library default, 1;
-            0 = off).
+            neighbouring points of the frame (finite, >= 0; None: the library default, 0 =
+            off).
 
     Returns:
         (N, 8) float64 array: timestamp tx ty tz qx qy qz qw (camera-to-world) per frame.

@@ -325,3 +325,27 @@ def test_segmentation_fields_and_the_masker_check():
     assert not (with_fg & ~radius_only).any()
     with pytest.raises(ValueError, match="foreground_radius"):
         ds3d.DynamicObjects(foreground_radius=0.0)
+
+
+def test_smooth_segmentation_relabels_isolated_points_and_validates():
+    """ds3d.smooth_segmentation: an isolated background label on a foreground surface flips,
+    weight 0 is the identity, non-finite rows keep their logit, bad arguments raise."""
+    g = np.stack(np.meshgrid(np.arange(20), np.arange(20), indexing="ij"), -1).reshape(-1, 2)
+    pts = np.column_stack([0.05 * g, np.full(len(g), 2.0)]).astype(np.float32)
+    lg = np.full(len(pts), 2.0, dtype=np.float32)
+    lg[[42, 205]] = -1.0
+    out = ds3d.smooth_segmentation(pts, lg, kernel_width=0.05, weight=1.0)
+    assert out.shape == (400,) and out.dtype == np.float32
+    assert np.all(out > 0)
+    assert np.array_equal(ds3d.smooth_segmentation(pts, lg, 0.05, 0.0), lg)
+    lg2 = lg.copy()
+    lg2[7] = np.nan
+    assert np.isnan(ds3d.smooth_segmentation(pts, lg2, 0.05, 1.0)[7])
+    with pytest.raises(ValueError, match="weight must be finite and >= 0"):
+        ds3d.smooth_segmentation(pts, lg, 0.05, -1.0)
+    with pytest.raises(ValueError, match="kernel_width"):
+        ds3d.smooth_segmentation(pts, lg, 0.0, 1.0)
+    with pytest.raises(ValueError, match="one value per row"):
+        ds3d.smooth_segmentation(pts, lg[:5], 0.05, 1.0)
+    with pytest.raises(ValueError, match="points"):
+        ds3d.smooth_segmentation(np.zeros((4, 2)), lg[:4], 0.05, 1.0)

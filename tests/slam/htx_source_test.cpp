@@ -926,9 +926,7 @@ TEST(HtxSource, DrawsAndFrameSmoothingSharpenTheSeatedSegmentation) {
   ASSERT_NE(det, nullptr) << "models/htx_lite_fast.safetensors is part of the source tree";
   const ds3d::synth::SyntheticScene scene = seated_scene(16);
   const ds3d::PinholeCamera cam = scene.options().camera;
-  // Without the spatial smoothing (session 16), as when the test was written.
-  const HtxSourceParams base{
-      .report_floor = true, .hold_frames = 0, .segment_frames = 0, .segment_smoothing = 0.0F};
+  const HtxSourceParams base{.report_floor = true, .hold_frames = 0, .segment_frames = 0};
   HtxSourceParams p_smooth = base;
   p_smooth.segment_frames = 10;
   HtxSourceParams p_two = base;

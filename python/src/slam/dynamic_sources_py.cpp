@@ -387,6 +387,35 @@ void bind_dynamic_sources(py::module_& m) {
       .def_property_readonly("name", &HdbscanMasker::name);
 
   m.def(
+      "smooth_segmentation",
+      [](const py::object& points, const py::object& logits, double kernel_width, float weight,
+         int iterations) {
+        constexpr const char* kFn = "ds3d.smooth_segmentation";
+        const ds3d::Points3f p = points_from(kFn, "points", points);
+        const auto l =
+            py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(logits);
+        DS3D_CHECK(l && l.ndim() == 1, kFn, ": logits must be an (N,) array (got ",
+                   pu::describe(logits), ")");
+        std::vector<float> lg(l.data(), l.data() + l.shape(0));
+        std::vector<float> out;
+        {
+          const py::gil_scoped_release release;
+          out = ds3d::slam::smooth_segmentation(p, lg, kernel_width, weight, iterations);
+        }
+        py::array_t<float> a(static_cast<py::ssize_t>(out.size()));
+        std::copy(out.begin(), out.end(), a.mutable_data());
+        return a;
+      },
+      py::arg("points"), py::arg("logits"), py::arg("kernel_width"), py::arg("weight"),
+      py::arg("iterations") = 5,
+      "Mean-field smoothing of a point segmentation (HtxSource's segment_smoothing): points (N, "
+      "3)\n"
+      "[m], logits (N,) foreground logits, kernel_width [m] > 0 (Gaussian kernel, neighbours\n"
+      "within 2 widths), weight >= 0 (0 = unchanged), iterations >= 1. Returns the (N,) float32\n"
+      "posterior logits; rows with a non-finite point or logit keep theirs. ValueError on bad\n"
+      "arguments (docs/dynamic.md, session 16).");
+
+  m.def(
       "make_dynamic_source",
       [](const std::string& spec, const py::object& weights, int detect_every,
          std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor,
@@ -424,8 +453,8 @@ void bind_dynamic_sources(py::module_& m) {
       "(>= 0, default 0 = off: average each point's part-head logit with its nearest point's in "
       "the\n"
       "last frames; docs/dynamic.md, session 15) and segment_smoothing (finite, >= 0, default\n"
-      "1, 0 = off: mean-field smoothing of the part head's labels over neighbouring points;\n"
-      "session 16) for htx. "
+      "0 = off: weight of the mean-field smoothing of the part head's labels over neighbouring\n"
+      "points; session 16) for htx. "
       "ValueError for\n"
       "an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");
