@@ -52,6 +52,9 @@ ${PY} -m ds3d.htx.train export --checkpoint "${WORK}/runs/main/checkpoint.pt" --
 # 3b. the part head re-fitted on per-pixel human labels, the rest frozen (session 11; boxes unchanged)
 ${PY} -m ds3d.htx.finetune_part --model models/htx_lite_fast.safetensors --data "${WORK}/train" \
   --out models/htx_lite_fast.safetensors --threads "${THREADS}"
+# 3c. the same re-fit for 8 more epochs (session 16: the 6-epoch head had not converged)
+${PY} -m ds3d.htx.finetune_part --model models/htx_lite_fast.safetensors --data "${WORK}/train" \
+  --out models/htx_lite_fast.safetensors --threads "${THREADS}" --epochs 8
 ${PY} -m ds3d.htx.evaluate synthetic --model models/htx_lite_fast.safetensors --data "${WORK}/test" \
   --json "${WORK}/eval_synthetic.json"
 ${PY} -m ds3d.htx.evaluate tum --model models/htx_lite_fast.safetensors \
