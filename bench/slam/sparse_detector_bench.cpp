@@ -99,17 +99,17 @@ BENCHMARK(BM_HtxFrame)
     ->Unit(benchmark::kMillisecond)
     ->MinTime(1.0);
 
-// The opt-in part-head averages (session 15), fast profile, segment on: Arg 0 defaults, 1
-// segment_frames 10, 2 draws 2 and segment_frames 10; Arg 3 the defaults with the spatial
-// smoothing of session 16 (segment_smoothing 1). Timestamps advance 1/30 s per iteration so
-// the smoothing window stays full. Counter detect_ms as BM_HtxFrame.
+// The part-head averages (sessions 15 and 16), fast profile, segment on: Arg 0 the defaults
+// (segment_frames 10 since session 16), 1 segment_frames 0 (the defaults before), 2 draws 2,
+// 3 segment_smoothing 1. Timestamps advance 1/30 s per iteration so the smoothing window stays
+// full. Counter detect_ms as BM_HtxFrame.
 void BM_HtxFrameAveraged(benchmark::State& state) {
   ds3d::synth::SynthOptions so;
   const std::vector<ds3d::slam::FrameInput> frames = htx_frames(so);
   auto det = std::make_shared<const ds3d::SparseDetector>(detector(0));
   ds3d::slam::HtxSourceParams p{.classes = {}};
-  p.segment_frames = state.range(0) == 1 || state.range(0) == 2 ? 10 : 0;
-  p.draws = state.range(0) == 2 ? 2 : 1;
+  if (state.range(0) == 1) p.segment_frames = 0;
+  if (state.range(0) == 2) p.draws = 2;
   if (state.range(0) == 3) p.segment_smoothing = 1.0F;
   ds3d::slam::HtxSource src(det, p);
   double det_ms = 0;

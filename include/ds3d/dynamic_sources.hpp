@@ -220,10 +220,13 @@ struct HtxSourceParams {
   /// this many earlier frames no older than hold_seconds. Assumes the camera-frame scene moves
   /// less than a leaf per frame window where it matters; a person who walks into a voxel
   /// meets only far points there (no neighbour within the leaf, so no mixing), one who walks
-  /// along a surface mixes with it. Off by default: 10 frames (the hold's third of a second)
-  /// raise seated precision on the synthetic scenes from 0.78 / 0.80 to 0.89 / 0.88, but the
-  /// Bonn crowd ATE with `htx` went from 0.0144 to 0.0164 m (docs/dynamic.md, session 15).
-  int segment_frames = 0;
+  /// along a surface mixes with it. Default 10 frames (the hold's third of a second) since
+  /// session 16: with the re-fitted part head it raises seated precision on the synthetic scenes
+  /// from 0.84 / 0.86 to 0.93 / 0.91 and every walker's recall, and the recorded ATE moves within
+  /// the runs' spread (Bonn, 5 specs: mean 0.0151 → 0.0145 m; fr1 unchanged). It was off in
+  /// session 15, when with the older head Bonn `htx` went from 0.0144 to 0.0164 m
+  /// (docs/dynamic.md, sessions 15 and 16). Costs ≈ 3–4 ms per frame.
+  int segment_frames = 10;
   /// Spatial smoothing of the segmentation, a weight >= 0, finite (0 = off; needs segment):
   /// mean-field inference of a binary conditional random field over the drawn points, the part
   /// head's (draw- and frame-averaged) logits as unaries and a Gaussian kernel
@@ -232,11 +235,12 @@ struct HtxSourceParams {
   /// this weight and its default iterations). A point the head labels against most of its surface
   /// neighbours is relabelled. Weight 1 (chosen on the held-out 10 % of the part head's
   /// training scenes: point precision / recall on frames with a seated humanoid 0.921 / 0.940 →
-  /// 0.938 / 0.965, other frames 0.930 / 0.930 → 0.952 / 0.950) raises seated keypoint
-  /// precision on the synthetic scenes from 0.78 / 0.80 to 0.81 / 0.84 and every walker's
-  /// recall, but off by default: on the Bonn crowd ATE with `htx --floor` every weight from 0.5
-  /// to 1.5 was worse (0.0167–0.0176 m against 0.0151), with `htx` 0.0140–0.0171 against 0.0144
-  /// (docs/dynamic.md, session 16). Costs ≈ 4 ms per frame at 4,096 drawn points.
+  /// 0.938 / 0.965, other frames 0.930 / 0.930 → 0.952 / 0.950, session-15 head) raised seated
+  /// keypoint precision on the synthetic scenes from 0.78 / 0.80 to 0.81 / 0.84 and every
+  /// walker's recall, but it is off by default: on the Bonn crowd ATE with `htx --floor` every
+  /// weight from 0.5 to 1.5 was worse (0.0167–0.0176 m against 0.0151), with `htx` 0.0140–0.0171
+  /// against 0.0144, and with the frame average on as well it adds little (docs/dynamic.md,
+  /// session 16). Costs ≈ 4 ms per frame at 4,096 drawn points.
   float segment_smoothing = 0.0F;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };

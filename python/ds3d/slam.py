@@ -36,7 +36,7 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
         draws: HTx network passes per frame on different draws of its input (>= 1, default 1):
             the part head is averaged over them and boxes only later draws find are added.
         segment_frames: earlier frames whose part-head logits are averaged into each point's
-            (nearest point within one voxel; >= 0; None: the library default, 0 = off).
+            (nearest point within one voxel; >= 0; None: the library default, 10; 0 = off).
         segment_smoothing: weight of the mean-field smoothing of the part head's labels over
             neighbouring points of the frame (finite, >= 0; None: the library default, 0 =
             off).

@@ -995,7 +995,8 @@ TEST(HtxSource, SpatialSmoothingRelabelsIsolatedSeatPoints) {
   ASSERT_NE(det, nullptr) << "models/htx_lite_fast.safetensors is part of the source tree";
   const ds3d::synth::SyntheticScene scene = seated_scene(12);
   const ds3d::PinholeCamera cam = scene.options().camera;
-  const HtxSourceParams off{.report_floor = true, .hold_frames = 0, .segment_smoothing = 0.0F};
+  const HtxSourceParams off{
+      .report_floor = true, .hold_frames = 0, .segment_frames = 0, .segment_smoothing = 0.0F};
   HtxSourceParams on_params = off;
   on_params.segment_smoothing = 1.0F;
   HtxSource plain(det, off);
