@@ -595,9 +595,7 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
         pts.row(static_cast<Eigen::Index>(k)) = pre.points.row(drawn[k]);
         lg[k] = logit[drawn[k]];
       }
-      const auto& leaf = params_.preprocess.voxel.leaf_size;
-      lg = smooth_segmentation(pts, lg, std::max({leaf.dx, leaf.dy, leaf.dz}),
-                               params_.segment_smoothing);
+      lg = smooth_segmentation(pts, lg, largest_leaf_edge(), params_.segment_smoothing);
       for (std::size_t k = 0; k < drawn.size(); ++k) logit[drawn[k]] = lg[k];
     }
     // Foreground: sigmoid(logit) > p  <=>  logit > log(p / (1 - p)). The first draw's points in
@@ -711,6 +709,11 @@ struct HtxSource::PastSegmentation {
   detail::KdTree3f<Points3f> tree;
 };
 
+double HtxSource::largest_leaf_edge() const {
+  const auto& leaf = params_.preprocess.voxel.leaf_size;
+  return std::max({leaf.dx, leaf.dy, leaf.dz});
+}
+
 void HtxSource::smooth_over_frames(const Points3f& points, const std::vector<int>& count,
                                    double timestamp, std::vector<float>& logit) {
   if (params_.segment_frames == 0) return;
@@ -719,8 +722,7 @@ void HtxSource::smooth_over_frames(const Points3f& points, const std::vector<int
                              timestamp - past_.front()->timestamp <= params_.hold_seconds)) {
     past_.pop_front();
   }
-  const auto& leaf = params_.preprocess.voxel.leaf_size;
-  const double r2 = std::pow(std::max({leaf.dx, leaf.dy, leaf.dz}), 2);
+  const double r2 = std::pow(largest_leaf_edge(), 2);
   std::vector<std::uint32_t> rows;
   for (Eigen::Index r = 0; r < points.rows(); ++r) {
     if (count[static_cast<std::size_t>(r)] > 0 && points.row(r).allFinite()) {

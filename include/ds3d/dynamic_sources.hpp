@@ -332,6 +332,8 @@ class HtxSource final : public DynamicObjectSource {
   // (unsmoothed) logits.
   void smooth_over_frames(const Points3f& points, const std::vector<int>& count, double timestamp,
                           std::vector<float>& logit);
+  // The preprocess voxel leaf's largest edge [m]: the scale of both segmentation smoothings.
+  [[nodiscard]] double largest_leaf_edge() const;
   DynamicObjects last_objects_;
   HtxFrameStats stats_;
   PixelRayCache rays_;  // undistortion table of the camera (distorted cameras only)

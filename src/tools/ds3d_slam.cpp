@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -157,6 +158,18 @@ double parse_fraction(const std::string& flag, const std::string& v) {
   return x;
 }
 
+// A finite number in [lo, hi]; anything else is a usage error naming the flag, `range` (the
+// accepted values in words) and the value.
+float parse_float(const std::string& flag, const std::string& v, float lo, float hi,
+                  const std::string& range) {
+  char* end = nullptr;
+  const float x = std::strtof(v.c_str(), &end);
+  if (v.empty() || *end != '\0' || !std::isfinite(x) || !(x >= lo && x <= hi)) {
+    usage_error(flag + " expects " + range + " (got '" + v + "')");
+  }
+  return x;
+}
+
 Args parse(int argc, char** argv) {
   Args a;
   std::vector<std::string> pos;
@@ -181,13 +194,7 @@ Args parse(int argc, char** argv) {
     } else if (s == "--detect-every") {
       a.detect_every = static_cast<int>(parse_int(s, value(), 1));
     } else if (s == "--min-score") {
-      const std::string v = value();
-      char* end = nullptr;
-      const float x = std::strtof(v.c_str(), &end);
-      if (v.empty() || *end != '\0' || !(x >= 0.0F && x <= 1.0F)) {
-        usage_error("--min-score expects a number in [0, 1] (got '" + v + "')");
-      }
-      a.min_score = x;
+      a.min_score = parse_float(s, value(), 0.0F, 1.0F, "a number in [0, 1]");
     } else if (s == "--hold-frames") {
       a.hold_frames = static_cast<int>(parse_int(s, value(), 0));
     } else if (s == "--htx-draws") {
@@ -195,13 +202,8 @@ Args parse(int argc, char** argv) {
     } else if (s == "--segment-frames") {
       a.segment_frames = static_cast<int>(parse_int(s, value(), 0));
     } else if (s == "--segment-smoothing") {
-      const std::string v = value();
-      char* end = nullptr;
-      const float x = std::strtof(v.c_str(), &end);
-      if (v.empty() || *end != '\0' || !(x >= 0.0F && std::isfinite(x))) {
-        usage_error("--segment-smoothing expects a finite number >= 0 (got '" + v + "')");
-      }
-      a.segment_smoothing = x;
+      a.segment_smoothing =
+          parse_float(s, value(), 0.0F, std::numeric_limits<float>::max(), "a finite number >= 0");
     } else if (s == "--floor") {
       a.floor = true;
     } else if (s == "--no-segment") {
