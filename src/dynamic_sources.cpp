@@ -274,9 +274,30 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
   detail::KdTree3f<Points3f> bg_tree(3, bg_adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   const double r2 = static_cast<double>(objects.foreground_radius) *
                     static_cast<double>(objects.foreground_radius);
+  // On the plane the source removed before segmenting (no label there): off the segment. The
+  // support-plane rule of the filter: support_margin plus 3σ of the depth noise along the normal.
+  std::optional<Eigen::Vector4f> plane;
+  if (objects.segment_plane) {
+    const Eigen::Vector4f& p = *objects.segment_plane;
+    const float norm = p.head<3>().norm();
+    DS3D_CHECK(p.allFinite() && norm > 0.0F,
+               "ds3d::slam::HdbscanMasker::mask: objects.segment_plane must be finite with a "
+               "non-zero normal (got ",
+               p.transpose(), ")");
+    plane = p / norm;
+  }
+  const DynamicFilterParams& fp = filter_.params();
+  const auto on_plane = [&](const Eigen::Vector3f& q, double z) {
+    if (!plane) return false;
+    const float dist = std::abs(plane->head<3>().dot(q) + plane->w());
+    const auto zf = static_cast<float>(z);
+    const float sn = fp.depth_noise * zf * std::abs(plane->head<3>().dot(q));  // σ(z)·|n·ray|
+    return dist <= fp.support_margin + 3.0F * sn;
+  };
   const auto on_segment = [&](float u, float v, double z) {
     if (finite_rows.empty()) return false;
     const Eigen::Vector3f q = camera.back_project(u, v, z).cast<float>();
+    if (on_plane(q, z)) return false;
     std::uint32_t index = 0;
     double d2 = 0.0;
     tree.knnSearch(q.data(), 1, &index, &d2);
@@ -287,6 +308,7 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
     bg_tree.knnSearch(q.data(), 1, &index, &bg_d2);
     return d2 <= bg_d2;
   };
+  const bool everywhere = objects.segment_outside_boxes;
   const cv::Mat& depth = frame.depth;
   const bool raw = camera_image(depth, CV_16UC1, camera);
   for (std::size_t i = 0; i < out.size(); ++i) {
@@ -299,9 +321,11 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
       if (inside(plain_rects, u, v)) continue;
       if (out[i] == 0U) {
         // A keypoint the box's clustering kept static although it passed the box's gates (a
-        // desk in front took the foreground cluster, the person split in depth): the
-        // segmentation decides.
-        if (last_.gated[i] != 0U && inside(seg_rects, u, v) && on_segment(u, v, z)) {
+        // desk in front took the foreground cluster, the person split in depth), or with a
+        // whole-frame segmentation any keypoint outside the unsegmented boxes (a body part
+        // outside its box): the segmentation decides.
+        const bool candidate = everywhere || (last_.gated[i] != 0U && inside(seg_rects, u, v));
+        if (candidate && on_segment(u, v, z)) {
           out[i] = 1;
           ++added_;
         }
@@ -313,10 +337,12 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
       }
       continue;
     }
-    // No depth at the keypoint: checked inside segmented boxes' rectangles, and where the filter
-    // made it dynamic outside them (a region carried from the previous frame), like a dynamic
-    // keypoint with depth.
-    if (inside(plain_rects, u, v) || (!inside(seg_rects, u, v) && out[i] == 0U)) continue;
+    // No depth at the keypoint: checked inside segmented boxes' rectangles (everywhere with a
+    // whole-frame segmentation), and where the filter made it dynamic outside them (a region
+    // carried from the previous frame), like a dynamic keypoint with depth.
+    if (inside(plain_rects, u, v) || (!everywhere && !inside(seg_rects, u, v) && out[i] == 0U)) {
+      continue;
+    }
     bool dynamic = false;
     if (raw) {
       const int x = std::clamp(static_cast<int>(std::lround(u)), 0, camera.width - 1);
@@ -535,6 +561,10 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
       R_up_cam_ = upright_rotation(up);
       stats_.ground_found = true;
       // This frame's floor (camera frame): the masker keeps the keypoints on it static.
+      // The floor preprocess removed: the segmentation below gives it no label.
+      if (params_.segment && run_) {
+        last_objects_.segment_plane = (pre.ground_plane / up.norm()).cast<float>();
+      }
       if (params_.report_floor) {
         last_objects_.support_plane = (pre.ground_plane / up.norm()).cast<float>();
       }
@@ -626,6 +656,7 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     gather(fg, last_objects_.foreground_points);
     gather(bg, last_objects_.background_points);
     last_objects_.foreground_radius = params_.foreground_radius;
+    last_objects_.segment_outside_boxes = params_.segment_outside_boxes;
     stats_.num_foreground = fg.size();
   } else {
     boxes = detect_(in.points);
@@ -801,6 +832,8 @@ void merge_segmentation(DynamicObjects& to, std::vector<std::uint8_t> flags,
         n == 0 ? from.foreground_radius : std::max(to.foreground_radius, from.foreground_radius);
     append_rows(to.foreground_points, from.foreground_points);
     append_rows(to.background_points, from.background_points);
+    if (!to.segment_plane) to.segment_plane = from.segment_plane;
+    to.segment_outside_boxes = to.segment_outside_boxes || from.segment_outside_boxes;
   }
   if (std::none_of(flags.begin(), flags.end(), [](std::uint8_t f) { return f != 0U; })) {
     flags.clear();
@@ -1145,6 +1178,9 @@ DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeC
     ++last_kept_;
   }
   merge_segmentation(out, std::move(flags), sem, sem_segmented);
+  // Under the gate the segmentation decides inside the confirmed boxes only: outside them the
+  // part head's foreground has no motion evidence (a seated person who does not move).
+  out.segment_outside_boxes = false;
   // The semantic source's floor (the motion source usually has none to give).
   out.support_plane = sem.support_plane ? sem.support_plane : out.support_plane;
   return out;

@@ -85,6 +85,20 @@ struct DynamicObjects {
   /// One per boxes_3d entry, or empty (= none): non-zero = the box comes with the segmentation
   /// in foreground_points, so its dynamic keypoints are confirmed against it.
   std::vector<std::uint8_t> boxes_3d_segmented;
+  /// The plane (n, d), n·p + d = 0 in the camera frame (n need not be unit length), that the
+  /// segmentation's source removed from its input before segmenting (HtxSource: the floor that
+  /// preprocess found), or none. The segmentation gives no label there, so a keypoint on it
+  /// (within DynamicFilterParams::support_margin plus 3σ of its depth noise along the normal, the
+  /// rule of support_plane) counts as off the segment: the floor around a person's feet lies
+  /// next to foreground points and has no background points of its own. Unlike support_plane it
+  /// takes no part in the filter's gating.
+  std::optional<Eigen::Vector4f> segment_plane;
+  /// The segmentation covers the whole frame, not only its boxes: outside every unsegmented
+  /// box's image rectangle, each keypoint is decided by the segmentation as inside a segmented
+  /// box's rectangle, and a keypoint the filter kept static becomes dynamic when it passes the
+  /// segmentation test even where no box gated it (a body part outside a box that is too small,
+  /// misplaced or missed in this frame). Used only in frames with at least one segmented box.
+  bool segment_outside_boxes = false;
   /// Largest distance [m] from a keypoint's 3-D point to a foreground point for the keypoint to
   /// count as on the segment; > 0. HtxSource sets twice its voxel leaf.
   float foreground_radius = 0.2F;
