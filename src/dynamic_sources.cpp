@@ -274,6 +274,16 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
   detail::KdTree3f<Points3f> bg_tree(3, bg_adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   const double r2 = static_cast<double>(objects.foreground_radius) *
                     static_cast<double>(objects.foreground_radius);
+  // The foreground's bounding box grown by the radius: a point outside it has no foreground
+  // point within the radius (most keypoints, once the whole frame is checked), no query needed.
+  Eigen::Vector3f fg_lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+  Eigen::Vector3f fg_hi = -fg_lo;
+  for (const std::uint32_t r : finite_rows) {
+    fg_lo = fg_lo.cwiseMin(objects.foreground_points.row(r).transpose());
+    fg_hi = fg_hi.cwiseMax(objects.foreground_points.row(r).transpose());
+  }
+  fg_lo.array() -= objects.foreground_radius;
+  fg_hi.array() += objects.foreground_radius;
   // On the plane the source removed before segmenting (no label there): off the segment. The
   // support-plane rule of the filter: support_margin plus 3σ of the depth noise along the normal.
   std::optional<Eigen::Vector4f> plane;
@@ -297,6 +307,7 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
   const auto on_segment = [&](float u, float v, double z) {
     if (finite_rows.empty()) return false;
     const Eigen::Vector3f q = camera.back_project(u, v, z).cast<float>();
+    if ((q.array() < fg_lo.array()).any() || (q.array() > fg_hi.array()).any()) return false;
     if (on_plane(q, z)) return false;
     std::uint32_t index = 0;
     double d2 = 0.0;

@@ -11,7 +11,10 @@
 // part head would report them: the cost of the segmentation check on top of the filter. With
 // argument 1 the other pixels with depth on an 8-pixel grid (≈ 4,000 points, about the
 // network's ≈ 3,000) come as DynamicObjects::background_points: the nearest-neighbour label
-// transfer of session 11 (a second KD-tree and query per checked keypoint).
+// transfer of session 11 (a second KD-tree and query per checked keypoint). With argument 2 the
+// same objects with DynamicObjects::segment_outside_boxes (session 17): every keypoint outside
+// the boxes is checked against the segmentation too (two KD-tree queries each, and a depth
+// window for those without depth).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -32,7 +35,8 @@ struct Prepared {
   ds3d::slam::OrbFeatures features;
   ds3d::slam::DynamicObjects objects;
   ds3d::slam::DynamicObjects segmented;
-  ds3d::slam::DynamicObjects segmented_bg;  // segmented + background_points
+  ds3d::slam::DynamicObjects segmented_bg;   // segmented + background_points
+  ds3d::slam::DynamicObjects segmented_all;  // segmented_bg + segment_outside_boxes
 };
 
 // Appends the walker on `m` to `o` as a segmented 3-D box and its foreground points.
@@ -105,6 +109,8 @@ const std::vector<Prepared>& prepared() {
       for (std::size_t k = 0; k < bg.size(); ++k) {
         q.segmented_bg.background_points.row(static_cast<Eigen::Index>(k)) = bg[k].transpose();
       }
+      q.segmented_all = q.segmented_bg;
+      q.segmented_all.segment_outside_boxes = true;
       out.push_back(std::move(q));
     }
     return out;
@@ -143,7 +149,9 @@ void BM_HdbscanMaskerMaskSegmented(benchmark::State& state) {
     vetoed = 0;
     fg = 0;
     for (const auto& f : frames) {
-      const auto& objects = state.range(0) != 0 ? f.segmented_bg : f.segmented;
+      const auto& objects = state.range(0) == 2   ? f.segmented_all
+                            : state.range(0) == 1 ? f.segmented_bg
+                                                  : f.segmented;
       const auto m = masker.mask(f.input, cam, f.features, objects);
       dynamic += std::count(m.begin(), m.end(), std::uint8_t{1});
       vetoed += static_cast<std::int64_t>(masker.last_vetoed());
@@ -157,7 +165,7 @@ void BM_HdbscanMaskerMaskSegmented(benchmark::State& state) {
   state.counters["foreground_points_per_frame"] = static_cast<double>(fg) / n;
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(frames.size()));
 }
-BENCHMARK(BM_HdbscanMaskerMaskSegmented)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_HdbscanMaskerMaskSegmented)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 // image_boxes() of four 3-D boxes (projection of 8 corners each): the per-frame glue cost.
 void BM_ImageBoxes3d(benchmark::State& state) {

@@ -10,7 +10,7 @@ __all__ = ["Slam", "SlamConfig", "run_slam"]
 
 def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
              dynamic="none", weights=None, detect_every=1, min_score=None, hold_frames=None,
-             draws=1, segment_frames=None, segment_smoothing=None):
+             draws=1, segment_frames=None, segment_smoothing=None, segment_outside_boxes=True):
     """Runs the SLAM pipeline on a TUM-layout folder (rgb.txt, depth.txt).
 
     Args:
@@ -40,6 +40,8 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
         segment_smoothing: weight of the mean-field smoothing of the part head's labels over
             neighbouring points of the frame (finite, >= 0; None: the library default, 0 =
             off).
+        segment_outside_boxes: the part head also marks the keypoints it sees on people outside
+            the HTx boxes (default True; False: it decides inside the boxes only).
 
     Returns:
         (N, 8) float64 array: timestamp tx ty tz qx qy qz qw (camera-to-world) per frame.
@@ -59,4 +61,5 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
                      None if min_score is None else float(min_score),
                      None if hold_frames is None else int(hold_frames), int(draws),
                      None if segment_frames is None else int(segment_frames),
-                     None if segment_smoothing is None else float(segment_smoothing))
+                     None if segment_smoothing is None else float(segment_smoothing),
+                     bool(segment_outside_boxes))

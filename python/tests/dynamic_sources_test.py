@@ -321,10 +321,31 @@ def test_segmentation_fields_and_the_masker_check():
     tie = ds3d.DynamicObjects(background_points=fg, **kw)
     assert tie.background_points.shape == fg.shape
     assert (ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, tie, CAM) == radius_only).all()
-    # The network's own background points can only take keypoints away.
-    assert not (with_fg & ~radius_only).any()
+    # The network's own background points can only take keypoints away (inside the boxes).
+    inside = ds3d.make_dynamic_source("htx", weights=weights, segment_outside_boxes=False)
+    o4 = inside.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
+    assert not o4.segment_outside_boxes and np.allclose(o4.foreground_points, fg)
+    in_boxes = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, o4, CAM)
+    assert not (in_boxes & ~radius_only).any()
     with pytest.raises(ValueError, match="foreground_radius"):
         ds3d.DynamicObjects(foreground_radius=0.0)
+    # By default the segmentation covers the frame, with the floor preprocess removed (session
+    # 17): it adds keypoints outside the boxes, never takes any away.
+    assert o.segment_outside_boxes and o.support_plane is None
+    assert o.segment_plane is not None and o.segment_plane[1] < -0.8
+    assert np.linalg.norm(o.segment_plane[:3]) == pytest.approx(1.0, abs=1e-5)
+    assert o2.segment_plane is None and not o2.segment_outside_boxes
+    assert not (in_boxes & ~with_fg).any()
+    assert on[with_fg].mean() > 0.9
+    kw_all = dict(kw, background_points=bg, segment_plane=o.segment_plane)
+    rebuilt = ds3d.DynamicObjects(segment_outside_boxes=True, **kw_all)
+    assert rebuilt.segment_outside_boxes and np.allclose(rebuilt.segment_plane, o.segment_plane)
+    assert (ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, rebuilt, CAM) == with_fg).all()
+    assert ds3d.DynamicObjects().segment_plane is None
+    assert not ds3d.DynamicObjects().segment_outside_boxes
+    for bad in ([0, 0, 0, 1], [0, np.nan, 0, 1], [0, 1, 0]):
+        with pytest.raises(ValueError, match="segment_plane"):
+            ds3d.DynamicObjects(segment_plane=bad)
 
 
 def test_smooth_segmentation_relabels_isolated_points_and_validates():

@@ -25,6 +25,9 @@ def test_run_slam_with_htx_and_composite(tmp_path):
     d = ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, min_score=0.0, draws=2,
                       segment_frames=0, segment_smoothing=0.0)
     assert d.shape == (4, 8) and np.all(np.isfinite(d))
+    e = ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, min_score=0.0,
+                      segment_outside_boxes=False)
+    assert e.shape == (4, 8) and np.all(np.isfinite(e))
 
 
 def test_run_slam_bad_dynamic_options(tmp_path):

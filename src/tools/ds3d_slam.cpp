@@ -47,7 +47,7 @@ constexpr const char* kUsage =
     "                 [--weights PATH]\n"
     "                 [--detect-every K] [--min-score S] [--hold-frames K] [--floor]\n"
     "                 [--no-segment] [--htx-draws N] [--segment-frames K]\n"
-    "                 [--segment-smoothing W] [--max-frames N]\n"
+    "                 [--segment-smoothing W] [--segment-boxes-only] [--max-frames N]\n"
     "                 [--stats "
     "stats.json] "
     "[--viz OUT_DIR]\n"
@@ -81,7 +81,9 @@ constexpr const char* kUsage =
     "  --segment-frames K: average each point's part-head logit with its nearest point's (within\n"
     "  one voxel) in each of the last K frames (default 10, 0 = off). --segment-smoothing W:\n"
     "  weight of the spatial mean-field smoothing of the part head's labels over neighbouring\n"
-    "  points (default 0 = off). All three: docs/dynamic.md.\n"
+    "  points (default 0 = off). --segment-boxes-only: the part head decides inside the boxes\n"
+    "  only (by default it also marks the keypoints it sees on people outside them). All four:\n"
+    "  docs/dynamic.md.\n"
     "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
     "(blue).\n"
     "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
@@ -113,6 +115,7 @@ struct Args {
   float segment_smoothing = -1.0F;  // < 0 = the HtxSourceParams default
   bool floor = false;
   bool no_segment = false;
+  bool segment_boxes_only = false;
   std::size_t max_frames = 0;
   std::filesystem::path stats;
   std::filesystem::path viz;
@@ -208,6 +211,8 @@ Args parse(int argc, char** argv) {
       a.floor = true;
     } else if (s == "--no-segment") {
       a.no_segment = true;
+    } else if (s == "--segment-boxes-only") {
+      a.segment_boxes_only = true;
     } else if (s == "--max-frames") {
       a.max_frames = static_cast<std::size_t>(parse_int(s, value(), 0));
     } else if (s == "--stats") {
@@ -256,15 +261,17 @@ Args parse(int argc, char** argv) {
       a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
   if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor ||
                     a.no_segment || a.hold_frames >= 0 || a.draws != 1 || a.segment_frames >= 0 ||
-                    a.segment_smoothing >= 0.0F)) {
+                    a.segment_smoothing >= 0.0F || a.segment_boxes_only)) {
     usage_error(
         "--weights, --detect-every, --min-score, --hold-frames, --floor, --no-segment, "
-        "--htx-draws, --segment-frames and --segment-smoothing need --dynamic htx or htx+...");
+        "--htx-draws, --segment-frames, --segment-smoothing and --segment-boxes-only need "
+        "--dynamic htx or htx+...");
   }
-  if (a.no_segment && (a.segment_frames > 0 || a.draws != 1 || a.segment_smoothing > 0.0F)) {
+  if (a.no_segment && (a.segment_frames > 0 || a.draws != 1 || a.segment_smoothing > 0.0F ||
+                       a.segment_boxes_only)) {
     usage_error(
-        "--segment-frames, --htx-draws and --segment-smoothing act on the part head's "
-        "segmentation: not with --no-segment");
+        "--segment-frames, --htx-draws, --segment-smoothing and --segment-boxes-only act on the "
+        "part head's segmentation: not with --no-segment");
   }
   if (a.hold_frames >= 0 && a.dynamic.find("&&") != std::string::npos) {
     usage_error("--hold-frames has no effect with --dynamic A&&geometric (its tracks hold boxes)");
@@ -360,6 +367,7 @@ int run(const Args& a) {
   if (a.segment_smoothing >= 0.0F) sopt.htx.segment_smoothing = a.segment_smoothing;
   sopt.htx.report_floor = a.floor;
   sopt.htx.segment = !a.no_segment;
+  sopt.htx.segment_outside_boxes = !a.segment_boxes_only;
   std::shared_ptr<ds3d::slam::DynamicObjectSource> source;
   try {
     source = ds3d::slam::make_dynamic_source(a.dynamic, sopt);

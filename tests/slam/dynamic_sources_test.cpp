@@ -420,6 +420,125 @@ TEST(HdbscanMasker, SegmentationDecidesInsideGatedBoxesAndColoursHoles) {
   EXPECT_EQ(wrong_size.mask(f, cam, feats, obj)[grid], 0);
 }
 
+// A person (slab at 2.0 m, u 250-329, v 80-449) standing on a floor (y = 0.8 m below the camera,
+// seen from row 324 down, the wall at 5 m above it), with a 3-D box over the upper body only
+// (too small, as the detector's boxes often are on seated people). The part head's foreground
+// covers the whole body; the source removed the floor before segmenting, so it has no
+// background points there (session 17).
+TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFloor) {
+  const ds3d::PinholeCamera cam;
+  constexpr double kFloorY = 0.8;
+  cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(25000));  // wall, 5 m
+  for (int v = 324; v < 480; ++v) {                      // floor rows (z <= 5 m)
+    const double z = kFloorY * cam.fy / (v - cam.cy);
+    depth.row(v).setTo(static_cast<int>(std::lround(z * cam.depth_scale)));
+  }
+  cv::Mat(depth, cv::Rect(250, 80, 80, 370)).setTo(10000);  // person, 2.0 m, feet at row 449
+  FrameInput f;
+  f.depth = depth;
+  ds3d::slam::OrbFeatures feats = keypoint_grid();
+  const std::size_t grid = feats.size();
+  DynamicObjects obj;
+  Eigen::Matrix<float, 8, 3> c;  // x over the person, y -0.65..0.2 (rows 75-292), z 1.8-2.2
+  for (int i = 0; i < 8; ++i) {
+    c.row(i) << ((i & 1) ? 0.05F : -0.28F), ((i & 2) ? 0.2F : -0.65F), ((i & 4) ? 2.2F : 1.8F);
+  }
+  obj.boxes_3d.push_back(c);
+  obj.boxes_3d_margin.push_back(0.1F);
+  obj.boxes_3d_segmented.push_back(1);
+  obj.foreground_points = slab_points(cam, 250, 329, 80, 449, 2.0);
+  obj.background_points = slab_points(cam, 0, 639, 0, 300, 5.0);  // the wall
+  const auto region = [&](int u0, int u1, int v0, int v1) {
+    return [=, &feats](std::size_t i) {
+      const cv::Point2f& p = feats.keypoints[i].pt;
+      return p.x >= static_cast<float>(u0) && p.x <= static_cast<float>(u1) &&
+             p.y >= static_cast<float>(v0) && p.y <= static_cast<float>(v1);
+    };
+  };
+  const auto upper = region(256, 324, 90, 250);
+  const auto legs = region(256, 324, 330, 430);
+  const auto floor_near = region(200, 380, 452, 479);  // beside and below the feet
+  const auto wall = region(0, 200, 0, 300);
+  const auto count = [&](const std::vector<std::uint8_t>& m, const auto& where) {
+    return count_on(m, grid, where);
+  };
+
+  // The box alone (segmentation inside the boxes only): the legs stay static.
+  ds3d::slam::HdbscanMasker inside_only;
+  const auto m0 = inside_only.mask(f, cam, feats, obj);
+  const auto [upper_on0, upper_n] = count(m0, upper);
+  const auto [legs_on0, legs_n] = count(m0, legs);
+  const auto [floor_on0, floor_n] = count(m0, floor_near);
+  ASSERT_GT(upper_n, 80);
+  ASSERT_GT(legs_n, 40);
+  ASSERT_GT(floor_n, 20);
+  EXPECT_EQ(upper_on0, upper_n);
+  EXPECT_EQ(legs_on0, 0);
+  EXPECT_EQ(floor_on0, 0);
+
+  // Whole frame, without the removed plane: the legs are taken, and so is the floor at the feet
+  // (next to the foot points, no background points of its own).
+  obj.segment_outside_boxes = true;
+  ds3d::slam::HdbscanMasker no_plane;
+  const auto m1 = no_plane.mask(f, cam, feats, obj);
+  EXPECT_EQ(count(m1, upper).first, upper_n);
+  EXPECT_EQ(count(m1, legs).first, legs_n);
+  EXPECT_GT(count(m1, floor_near).first, 0);
+  EXPECT_EQ(count(m1, wall).first, 0);
+  EXPECT_GE(no_plane.last_added(), static_cast<std::size_t>(legs_n));
+
+  // With the plane the source removed (any normal length): the floor stays static.
+  obj.segment_plane = Eigen::Vector4f(0.0F, 2.0F, 0.0F, static_cast<float>(-2.0 * kFloorY));
+  ds3d::slam::HdbscanMasker masker;
+  const auto m2 = masker.mask(f, cam, feats, obj);
+  EXPECT_EQ(count(m2, upper).first, upper_n);
+  EXPECT_EQ(count(m2, legs).first, legs_n);
+  EXPECT_EQ(count(m2, floor_near).first, 0);
+  EXPECT_EQ(count(m2, wall).first, 0);
+
+  // An unsegmented 2-D box over the legs: its keypoints are the filter's, not the segmentation's.
+  DynamicObjects plain_legs = obj;
+  plain_legs.boxes_2d.emplace_back(240.0F, 320.0F, 100.0F, 140.0F);
+  plain_legs.scores.push_back(0.9F);
+  ds3d::slam::HdbscanMasker mixed;
+  const auto m3 = mixed.mask(f, cam, feats, plain_legs);
+  EXPECT_EQ(count(m3, upper).first, upper_n);
+  DynamicObjects legs_box_only;
+  legs_box_only.boxes_2d = plain_legs.boxes_2d;
+  legs_box_only.scores = plain_legs.scores;
+  ds3d::slam::HdbscanMasker box_only;
+  const auto m3b = box_only.mask(f, cam, feats, legs_box_only);
+  const auto in_legs_box = region(240, 340, 320, 460);
+  int compared = 0;
+  for (std::size_t i = 0; i < grid; ++i) {
+    if (in_legs_box(i)) {
+      ++compared;
+      EXPECT_EQ(m3[i], m3b[i]) << "keypoint " << i << " in the unsegmented box";
+    }
+  }
+  EXPECT_GT(compared, 100);
+
+  // No segmented box in the frame: the flag alone marks nothing.
+  DynamicObjects unflagged = obj;
+  unflagged.boxes_3d_segmented.assign(1, 0);
+  ds3d::slam::HdbscanMasker unseg;
+  const auto m4 = unseg.mask(f, cam, feats, unflagged);
+  EXPECT_EQ(count(m4, legs).first, 0);
+
+  // A malformed plane names the member.
+  for (const Eigen::Vector4f& bad_plane : {Eigen::Vector4f(0.0F, 0.0F, 0.0F, 1.0F),
+                                           Eigen::Vector4f(0.0F, std::nanf(""), 0.0F, 1.0F)}) {
+    DynamicObjects bad = obj;
+    bad.segment_plane = bad_plane;
+    try {
+      (void)masker.mask(f, cam, feats, bad);
+      ADD_FAILURE() << "no exception";
+    } catch (const ds3d::InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find("segment_plane"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(GeometricMotion, RejectsBadParamsAndIgnoresFramesWithoutDepth) {
   EXPECT_THROW(ds3d::slam::GeometricMotionSource({.reference_gap = 0}), ds3d::InvalidArgument);
   EXPECT_THROW(ds3d::slam::GeometricMotionSource({.min_depth_residual = 0.0F}),

@@ -405,7 +405,9 @@ TEST(HtxSource, SegmentsTheWalkerWithTheShippedModel) {
   const ds3d::PinholeCamera cam = scene.options().camera;
   HtxSource seg(det);
   HtxSource plain(det, {.segment = false});
+  HtxSource inside(det, {.segment_outside_boxes = false});
   HtxSource fn([&](Eigen::Ref<const Points3f> xyz) { return det->detect(xyz); }, {"person"});
+  std::size_t with_plane = 0;
   std::size_t fg_total = 0;
   std::size_t fg_on = 0;
   std::size_t boxes = 0;
@@ -431,6 +433,21 @@ TEST(HtxSource, SegmentsTheWalkerWithTheShippedModel) {
     EXPECT_EQ(b.foreground_points.rows(), 0);
     EXPECT_EQ(b.background_points.rows(), 0);
     EXPECT_TRUE(b.boxes_3d_segmented.empty());
+    // The segmentation covers the frame; the floor preprocess removed comes with it (unit
+    // normal pointing up, camera height above it), though report_floor is off.
+    EXPECT_TRUE(a.segment_outside_boxes);
+    EXPECT_FALSE(a.support_plane.has_value());
+    if (seg.last_stats().ground_found) {
+      ++with_plane;
+      ASSERT_TRUE(a.segment_plane.has_value()) << i;
+      EXPECT_NEAR(a.segment_plane->head<3>().norm(), 1.0F, 1e-5F);
+      EXPECT_LT(a.segment_plane->y(), -0.8F);
+      EXPECT_GT(a.segment_plane->w(), 0.3F);
+    }
+    EXPECT_FALSE(b.segment_outside_boxes);
+    EXPECT_FALSE(b.segment_plane.has_value());
+    EXPECT_FALSE(c.segment_plane.has_value());
+    EXPECT_FALSE(inside.detect(in, cam).segment_outside_boxes);
     EXPECT_EQ(c.foreground_points.rows(), 0);
     EXPECT_TRUE(c.boxes_3d_segmented.empty());
     boxes += a.boxes_3d.size();
@@ -466,6 +483,7 @@ TEST(HtxSource, SegmentsTheWalkerWithTheShippedModel) {
             << " foreground points on the walker, " << boxes << " boxes; inside the walker "
             << inner_fg << " foreground and " << inner_bg << " background points\n";
   EXPECT_GT(boxes, 0U);
+  EXPECT_GT(with_plane, 0U);
   EXPECT_GT(fg_total, 50U);
   EXPECT_GE(static_cast<double>(fg_on), 0.9 * static_cast<double>(fg_total));
   EXPECT_GE(static_cast<double>(inner_fg), 0.8 * static_cast<double>(inner_fg + inner_bg));
@@ -534,17 +552,26 @@ TEST(CompositeSource, SecondSourceSeesTheFrameWithoutTheFirstsObjects) {
     s->out.foreground_points = Points3f::Constant(5, 3, 2.2F);
     s->out.background_points = Points3f::Constant(7, 3, 3.0F);
     s->out.foreground_radius = 0.3F;
+    s->out.segment_plane = Eigen::Vector4f(0.0F, -1.0F, 0.0F, 1.2F);
+    s->out.segment_outside_boxes = true;
     const DynamicObjects u = ds3d::slam::CompositeSource(b, s).detect(f, ds3d::PinholeCamera{});
     ASSERT_EQ(u.boxes_3d.size(), 2U);
     EXPECT_EQ(u.boxes_3d_segmented, (std::vector<std::uint8_t>{0, 1}));
     EXPECT_EQ(u.foreground_points.rows(), 5);
     EXPECT_EQ(u.background_points.rows(), 7);
     EXPECT_FLOAT_EQ(u.foreground_radius, 0.3F);
+    ASSERT_TRUE(u.segment_plane.has_value());  // the segmentation's plane comes with it
+    EXPECT_FLOAT_EQ(u.segment_plane->w(), 1.2F);
+    EXPECT_TRUE(u.segment_outside_boxes);
+    EXPECT_FALSE(u.support_plane.has_value());
     const DynamicObjects g = ds3d::slam::MotionGatedSource(s, b).detect(f, ds3d::PinholeCamera{});
     ASSERT_EQ(g.boxes_3d.size(), 2U);  // the motion box, then the kept semantic box
     EXPECT_EQ(g.boxes_3d_segmented, (std::vector<std::uint8_t>{0, 1}));
     EXPECT_EQ(g.foreground_points.rows(), 5);
     EXPECT_EQ(g.background_points.rows(), 7);
+    EXPECT_TRUE(g.segment_plane.has_value());
+    // Under the gate the segmentation decides inside the confirmed boxes only.
+    EXPECT_FALSE(g.segment_outside_boxes);
     const DynamicObjects p = ds3d::slam::CompositeSource(b, b).detect(f, ds3d::PinholeCamera{});
     EXPECT_TRUE(p.boxes_3d_segmented.empty());
     EXPECT_EQ(p.foreground_points.rows(), 0);
@@ -1067,6 +1094,8 @@ TEST(Ds3dSlamCli, HtxOptions) {
   EXPECT_EQ(run_cli(ds + " --dynamic htx --segment-smoothing 1x").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic geometric --segment-smoothing 1").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic htx --no-segment --segment-smoothing 1").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic geometric --segment-boxes-only").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --no-segment --segment-boxes-only").code, 2);
   r = run_cli(ds + " --dynamic htx+nothing");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("nothing"), std::string::npos) << r.output;
@@ -1074,8 +1103,8 @@ TEST(Ds3dSlamCli, HtxOptions) {
   for (const std::string spec : {"htx", "htx+geometric"}) {
     r = run_cli(ds + " --dynamic " + spec + " --weights '" + fixture_weights().string() +
                 "' --detect-every 2 --min-score 0 --floor --quiet --no-threads" +
-                (spec == "htx" ? " --no-segment" : "") + " --out '" + (dir / "traj.txt").string() +
-                "' --stats '" + (dir / "stats.json").string() + "'");
+                (spec == "htx" ? " --no-segment" : " --segment-boxes-only") + " --out '" +
+                (dir / "traj.txt").string() + "' --stats '" + (dir / "stats.json").string() + "'");
     EXPECT_EQ(r.code, 0) << spec << ": " << r.output;
     const auto stats = ds3d::test::read_json(dir / "stats.json");
     EXPECT_EQ(stats.at("dynamic").as_string(), spec);

@@ -61,12 +61,24 @@ ds3d::Points3f points_from(const char* fn, const char* name, const py::object& o
   return out;
 }
 
+// A (4,) plane (a, b, c, d), finite with a non-zero normal; errors name `fn` and `name`.
+Eigen::Vector4f plane_from(const char* fn, const char* name, const py::object& obj) {
+  const auto a = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(obj);
+  DS3D_CHECK(a && a.ndim() == 1 && a.shape(0) == 4, fn, ": ", name,
+             " must be a (4,) array (a, b, c, d) (got ", pu::describe(obj), ")");
+  const Eigen::Vector4f q(a.at(0), a.at(1), a.at(2), a.at(3));
+  DS3D_CHECK(q.allFinite() && q.head<3>().norm() > 0.0F, fn, ": ", name,
+             " must be finite with a non-zero normal (got ", q.transpose(), ")");
+  return q;
+}
+
 DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores,
                             const py::object& boxes_3d, const py::object& pixel_mask,
                             const py::object& boxes_3d_margin, const py::object& support_plane,
                             const py::object& foreground_points,
                             const py::object& boxes_3d_segmented, float foreground_radius,
-                            const py::object& background_points) {
+                            const py::object& background_points, const py::object& segment_plane,
+                            bool segment_outside_boxes) {
   constexpr const char* fn = "ds3d.DynamicObjects";
   DynamicObjects o;
   if (!boxes_2d.is_none()) o.boxes_2d = rects_from(fn, boxes_2d);
@@ -109,17 +121,7 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
       o.boxes_3d_margin.push_back(v);
     }
   }
-  if (!support_plane.is_none()) {
-    const auto a =
-        py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(support_plane);
-    DS3D_CHECK(a && a.ndim() == 1 && a.shape(0) == 4, fn,
-               ": support_plane must be a (4,) array (a, b, c, d) (got ",
-               pu::describe(support_plane), ")");
-    const Eigen::Vector4f q(a.at(0), a.at(1), a.at(2), a.at(3));
-    DS3D_CHECK(q.allFinite() && q.head<3>().norm() > 0.0F, fn,
-               ": support_plane must be finite with a non-zero normal");
-    o.support_plane = q;
-  }
+  if (!support_plane.is_none()) o.support_plane = plane_from(fn, "support_plane", support_plane);
   if (!foreground_points.is_none()) {
     o.foreground_points = points_from(fn, "foreground_points", foreground_points);
   }
@@ -139,6 +141,8 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
   DS3D_CHECK(std::isfinite(foreground_radius) && foreground_radius > 0.0F, fn,
              ": foreground_radius must be finite and > 0 (got ", foreground_radius, ")");
   o.foreground_radius = foreground_radius;
+  if (!segment_plane.is_none()) o.segment_plane = plane_from(fn, "segment_plane", segment_plane);
+  o.segment_outside_boxes = segment_outside_boxes;
   if (!pixel_mask.is_none()) {
     const auto m = pu::exact<std::uint8_t>(fn, "pixel_mask", pixel_mask, "an (H, W) uint8 array");
     DS3D_CHECK(m.ndim() == 2, fn, ": pixel_mask must be an (H, W) uint8 array (got ",
@@ -193,19 +197,23 @@ void bind_dynamic_sources(py::module_& m) {
       "What a dynamic-object source found in one frame (include/ds3d/slam_frontend.hpp).\n"
       "DynamicObjects(boxes_2d=None, scores=None, boxes_3d=None, pixel_mask=None,\n"
       "boxes_3d_margin=None, support_plane=None, foreground_points=None,\n"
-      "boxes_3d_segmented=None, foreground_radius=0.2, background_points=None) builds one from\n"
+      "boxes_3d_segmented=None, foreground_radius=0.2, background_points=None,\n"
+      "segment_plane=None, segment_outside_boxes=False) builds one from\n"
       "your own detector's output (ValueError on bad shapes, non-finite values, inverted boxes).\n"
       "foreground_points (N, 3) [m, camera frame] and boxes_3d_segmented (K,) bool: a segmenting\n"
       "detector's points on its objects; the masker keeps the dynamic keypoints of a flagged box\n"
       "only within foreground_radius [m] of one and, when background_points (M, 3) (its points\n"
       "off the objects) are given, only where the nearest of all these points is a foreground\n"
-      "one (ds3d.HdbscanMasker).")
+      "one (ds3d.HdbscanMasker); segment_plane (4,): the plane the segmentation left out (its\n"
+      "keypoints count as off the segment); segment_outside_boxes: the segmentation covers the\n"
+      "whole frame and also marks keypoints outside the boxes.")
       .def(py::init(&objects_from), py::arg("boxes_2d") = py::none(),
            py::arg("scores") = py::none(), py::arg("boxes_3d") = py::none(),
            py::arg("pixel_mask") = py::none(), py::arg("boxes_3d_margin") = py::none(),
            py::arg("support_plane") = py::none(), py::arg("foreground_points") = py::none(),
            py::arg("boxes_3d_segmented") = py::none(), py::arg("foreground_radius") = 0.2F,
-           py::arg("background_points") = py::none())
+           py::arg("background_points") = py::none(), py::arg("segment_plane") = py::none(),
+           py::arg("segment_outside_boxes") = false)
       .def_property_readonly(
           "boxes_2d",
           [](const DynamicObjects& o) {
@@ -275,6 +283,17 @@ void bind_dynamic_sources(py::module_& m) {
           },
           "(K,) bool per 3-D box: its dynamic keypoints are confirmed against foreground_points; "
           "or empty.")
+      .def_property_readonly(
+          "segment_plane",
+          [](const DynamicObjects& o) -> py::object {
+            if (!o.segment_plane) return py::none();
+            return py::cast(Eigen::Vector4f(*o.segment_plane));
+          },
+          "(4,) plane (a, b, c, d) in the camera frame that the segmentation's source left out of "
+          "its input (htx: the floor), or None.")
+      .def_property_readonly(
+          "segment_outside_boxes", [](const DynamicObjects& o) { return o.segment_outside_boxes; },
+          "True when the segmentation also decides keypoints outside the boxes.")
       .def_property_readonly(
           "foreground_radius", [](const DynamicObjects& o) { return o.foreground_radius; },
           "largest keypoint-to-foreground-point distance [m] for the segmentation check.")
@@ -420,8 +439,9 @@ void bind_dynamic_sources(py::module_& m) {
       [](const std::string& spec, const py::object& weights, int detect_every,
          std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor,
          bool segment, std::optional<int> hold_frames, int draws, std::optional<int> segment_frames,
-         std::optional<float> segment_smoothing) {
+         std::optional<float> segment_smoothing, bool segment_outside_boxes) {
         ds3d::slam::DynamicSourceOptions o;
+        o.htx.segment_outside_boxes = segment_outside_boxes;
         if (segment_smoothing) o.htx.segment_smoothing = *segment_smoothing;
         if (hold_frames) o.htx.hold_frames = *hold_frames;
         o.htx.draws = draws;
@@ -439,6 +459,7 @@ void bind_dynamic_sources(py::module_& m) {
       py::arg("report_floor") = false, py::arg("segment") = true,
       py::arg("hold_frames") = py::none(), py::arg("draws") = 1,
       py::arg("segment_frames") = py::none(), py::arg("segment_smoothing") = py::none(),
+      py::arg("segment_outside_boxes") = true,
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric'), 'A&B' (A's boxes only where B sees\n"
       "motion, e.g. 'htx&geometric') or 'A&&geometric' (A's boxes where the geometric source's\n"
@@ -454,7 +475,8 @@ void bind_dynamic_sources(py::module_& m) {
       "point's in the last frames; docs/dynamic.md, sessions 15 and 16) and segment_smoothing "
       "(finite, >= 0, default\n"
       "0 = off: weight of the mean-field smoothing of the part head's labels over neighbouring\n"
-      "points; session 16) for htx. "
+      "points; session 16) and segment_outside_boxes (default True: the part head also marks\n"
+      "the keypoints it sees on people outside the boxes; session 17) for htx. "
       "ValueError for\n"
       "an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");

@@ -192,8 +192,9 @@ void bind_slam_frontend(py::module_& m) {
          bool threaded, std::optional<FrontendConfig> config, const std::string& dynamic,
          const std::string& weights, int detect_every, std::optional<float> min_score,
          std::optional<int> hold_frames, int draws, std::optional<int> segment_frames,
-         std::optional<float> segment_smoothing) {
+         std::optional<float> segment_smoothing, bool segment_outside_boxes) {
         ds3d::slam::DynamicSourceOptions sopt;
+        sopt.htx.segment_outside_boxes = segment_outside_boxes;
         if (segment_smoothing) sopt.htx.segment_smoothing = *segment_smoothing;
         sopt.htx.draws = draws;
         if (segment_frames) sopt.htx.segment_frames = *segment_frames;
@@ -226,5 +227,5 @@ void bind_slam_frontend(py::module_& m) {
       py::arg("weights") = "", py::arg("detect_every") = 1, py::arg("min_score") = py::none(),
       py::arg("hold_frames") = py::none(), py::arg("draws") = 1,
       py::arg("segment_frames") = py::none(), py::arg("segment_smoothing") = py::none(),
-      "Internal: see ds3d.run_slam.");
+      py::arg("segment_outside_boxes") = true, "Internal: see ds3d.run_slam.");
 }
