@@ -178,9 +178,11 @@ struct HtxSourceParams {
   float box_uncertainty = 0.15F;
   /// Report the floor that preprocess found in the frame as DynamicObjects::support_plane (the
   /// masker then keeps keypoints on it static; `ds3d-slam --floor`). Off by default: on the
-  /// synthetic scenes it raises precision from ≈ 0.5 to 0.91–0.95 on walking_xyz/static and
+  /// synthetic scenes it raised precision from ≈ 0.5 to 0.91–0.95 on walking_xyz/static and
   /// fr1's `htx` ATE improves, but on the recorded people (Bonn crowd ATE, the TUM fr3 person
-  /// masks) it removes fewer person keypoints (docs/dynamic.md, session 7).
+  /// masks) it removes fewer person keypoints (docs/dynamic.md, session 7). Since session 17 the
+  /// same floor always comes as DynamicObjects::segment_plane (with segment), which keeps it out
+  /// of the segmentation's decisions only; the synthetic figures are then the same either way.
   bool report_floor = false;
   /// Run the detector's Part-A2 part head on every input point and report the points it
   /// segments as foreground (probability > foreground_min_prob) as
