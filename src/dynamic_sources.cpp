@@ -571,14 +571,11 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     if (up.allFinite() && up.y() < 0.0 && std::isfinite(pre.ground_plane.w())) {
       R_up_cam_ = upright_rotation(up);
       stats_.ground_found = true;
-      // This frame's floor (camera frame): the masker keeps the keypoints on it static.
-      // The floor preprocess removed: the segmentation below gives it no label.
-      if (params_.segment && run_) {
-        last_objects_.segment_plane = (pre.ground_plane / up.norm()).cast<float>();
-      }
-      if (params_.report_floor) {
-        last_objects_.support_plane = (pre.ground_plane / up.norm()).cast<float>();
-      }
+      const Eigen::Vector4f ground = (pre.ground_plane / up.norm()).cast<float>();
+      // The floor preprocess removed (camera frame): the segmentation below gives it no label.
+      if (params_.segment && run_) last_objects_.segment_plane = ground;
+      // This frame's floor: the masker keeps the keypoints on it static.
+      if (params_.report_floor) last_objects_.support_plane = ground;
     }
   }
   DetectorInputParams ip = params_.input;

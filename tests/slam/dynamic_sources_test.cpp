@@ -178,6 +178,15 @@ ds3d::slam::OrbFeatures keypoint_grid() {
   return feats;
 }
 
+// A predicate on keypoint indices of `feats`: the keypoint lies in [u0, u1] x [v0, v1] [px].
+auto in_region(const ds3d::slam::OrbFeatures& feats, int u0, int u1, int v0, int v1) {
+  return [=, &feats](std::size_t i) {
+    const cv::Point2f& p = feats.keypoints[i].pt;
+    return p.x >= static_cast<float>(u0) && p.x <= static_cast<float>(u1) &&
+           p.y >= static_cast<float>(v0) && p.y <= static_cast<float>(v1);
+  };
+}
+
 // (dynamic, all) among the first `grid` keypoints where `where(i)` holds.
 template <class Where>
 std::pair<int, int> count_on(const std::vector<std::uint8_t>& m, std::size_t grid,
@@ -365,11 +374,7 @@ TEST(HdbscanMasker, SegmentationDecidesInsideGatedBoxesAndColoursHoles) {
   obj.foreground_points = slab_points(cam, 250, 329, 80, 295, 1.5);
   obj.background_points = slab_points(cam, 200, 379, 300, 479, 1.0);
   const auto region = [&](int u0, int u1, int v0, int v1) {
-    return [=, &feats](std::size_t i) {
-      const cv::Point2f& p = feats.keypoints[i].pt;
-      return p.x >= static_cast<float>(u0) && p.x <= static_cast<float>(u1) &&
-             p.y >= static_cast<float>(v0) && p.y <= static_cast<float>(v1);
-    };
+    return in_region(feats, u0, u1, v0, v1);
   };
   const auto person = region(256, 324, 86, 294);  // visible above the desk, off the edges
   const auto desk = region(206, 374, 306, 474);
@@ -449,11 +454,7 @@ TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFl
   obj.foreground_points = slab_points(cam, 250, 329, 80, 449, 2.0);
   obj.background_points = slab_points(cam, 0, 639, 0, 300, 5.0);  // the wall
   const auto region = [&](int u0, int u1, int v0, int v1) {
-    return [=, &feats](std::size_t i) {
-      const cv::Point2f& p = feats.keypoints[i].pt;
-      return p.x >= static_cast<float>(u0) && p.x <= static_cast<float>(u1) &&
-             p.y >= static_cast<float>(v0) && p.y <= static_cast<float>(v1);
-    };
+    return in_region(feats, u0, u1, v0, v1);
   };
   const auto upper = region(256, 324, 90, 250);
   const auto legs = region(256, 324, 330, 430);
