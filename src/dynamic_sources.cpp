@@ -446,6 +446,70 @@ bool continues(const Box3& kept, const Eigen::Vector3f& kept_centre,
 
 }  // namespace
 
+std::size_t keep_anchored_foreground(DynamicObjects& objects, float margin) {
+  constexpr const char* kFn = "ds3d::slam::keep_anchored_foreground";
+  DS3D_CHECK(margin >= 0.0F, kFn, ": margin must be >= 0 or +inf (got ", margin, ")");
+  DS3D_CHECK(std::isfinite(objects.foreground_radius) && objects.foreground_radius > 0.0F, kFn,
+             ": objects.foreground_radius must be finite and > 0 (got ", objects.foreground_radius,
+             ")");
+  Points3f& fg = objects.foreground_points;
+  std::vector<std::uint32_t> rows;  // the finite rows (tree index -> row)
+  for (Eigen::Index r = 0; r < fg.rows(); ++r) {
+    if (fg.row(r).allFinite()) rows.push_back(static_cast<std::uint32_t>(r));
+  }
+  if (rows.empty()) return 0;
+  // Seeds: the points inside a box's solid grown by the margin (tree indices).
+  std::vector<std::uint8_t> anchored(rows.size(), 0);
+  std::vector<std::uint32_t> queue;
+  for (const Eigen::Matrix<float, 8, 3>& corners : objects.boxes_3d) {
+    const std::optional<SolidBox> solid =
+        solid_from_corners(corners, std::isfinite(margin) ? margin : 0.0F);
+    if (!solid) continue;
+    for (std::uint32_t t = 0; t < rows.size(); ++t) {
+      const Eigen::Vector3f p = fg.row(rows[t]).transpose();
+      if (anchored[t] != 0U || !(p.z() > 0.0F)) continue;
+      if (solid->contains(p, p / p.z(), 0.0F)) {
+        anchored[t] = 1;
+        queue.push_back(t);
+      }
+    }
+  }
+  if (queue.size() < rows.size() && !queue.empty()) {
+    // Breadth-first along the foreground: every point within the radius of an anchored one.
+    const detail::KdTreeCloudAdaptor<Points3f> adaptor{fg, &rows};
+    detail::KdTree3f<Points3f> tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    tree.buildIndex();
+    const double r2 = static_cast<double>(objects.foreground_radius) * objects.foreground_radius;
+    const auto reach = [&](std::uint32_t t) {  // never counted: the search visits them all
+      if (anchored[t] == 0U) {
+        anchored[t] = 1;
+        queue.push_back(t);
+      }
+      return false;
+    };
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+      const Eigen::Vector3f q = fg.row(rows[queue[head]]).transpose();
+      detail::CountingRadiusResultSet<decltype(reach)> rs(r2, 1, reach);
+      tree.findNeighbors(rs, q.data(), nanoflann::SearchParams());
+    }
+  }
+  const std::size_t moved = rows.size() - queue.size();
+  if (moved == 0) return 0;
+  // Row order kept on both sides; non-finite rows stay with the foreground (ignored there).
+  std::vector<std::uint8_t> stays(static_cast<std::size_t>(fg.rows()), 1);
+  for (std::uint32_t t = 0; t < rows.size(); ++t) stays[rows[t]] = anchored[t];
+  Points3f kept(fg.rows() - static_cast<Eigen::Index>(moved), 3);
+  Points3f& bg = objects.background_points;
+  Eigen::Index b = bg.rows();
+  bg.conservativeResize(b + static_cast<Eigen::Index>(moved), 3);
+  Eigen::Index a = 0;
+  for (Eigen::Index r = 0; r < fg.rows(); ++r) {
+    (stays[static_cast<std::size_t>(r)] != 0U ? kept.row(a++) : bg.row(b++)) = fg.row(r);
+  }
+  fg = std::move(kept);
+  return moved;
+}
+
 std::vector<float> smooth_segmentation(const Points3f& points, const std::vector<float>& logits,
                                        double kernel_width, float weight, int iterations) {
   constexpr const char* kFn = "ds3d::slam::smooth_segmentation";
@@ -696,7 +760,15 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
     if (j >= first_draw_boxes) ++stats_.num_draw_boxes;
   }
   stats_.num_boxes = boxes_.size();
-  if (!segment || params_.hold_frames == 0) return last_objects_;
+  // Whole-frame segmentation: only the foreground connected to a reported box is trusted.
+  const auto finish = [&]() -> const DynamicObjects& {
+    if (segment && params_.segment_outside_boxes) {
+      stats_.num_unanchored = keep_anchored_foreground(last_objects_, params_.box_uncertainty);
+      stats_.num_foreground -= stats_.num_unanchored;
+    }
+    return last_objects_;
+  };
+  if (!segment || params_.hold_frames == 0) return finish();
   // Carry the held boxes that no box of this frame continues while the segmentation still sees
   // foreground in them; then hold this frame's boxes.
   const Points3f& fg = last_objects_.foreground_points;
@@ -731,7 +803,7 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
   }
   held_ = std::move(held);
   stats_.num_boxes += stats_.num_carried;
-  return last_objects_;
+  return finish();
 }
 
 struct HtxSource::PastSegmentation {

@@ -324,7 +324,8 @@ def test_segmentation_fields_and_the_masker_check():
     # The network's own background points can only take keypoints away (inside the boxes).
     inside = ds3d.make_dynamic_source("htx", weights=weights, segment_outside_boxes=False)
     o4 = inside.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
-    assert not o4.segment_outside_boxes and np.allclose(o4.foreground_points, fg)
+    assert not o4.segment_outside_boxes and len(o4.foreground_points) >= len(fg)
+    assert len(o4.foreground_points) + len(o4.background_points) == len(fg) + len(bg)
     in_boxes = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, o4, CAM)
     assert not (in_boxes & ~radius_only).any()
     with pytest.raises(ValueError, match="foreground_radius"):
@@ -346,6 +347,18 @@ def test_segmentation_fields_and_the_masker_check():
     for bad in ([0, 0, 0, 1], [0, np.nan, 0, 1], [0, 1, 0]):
         with pytest.raises(ValueError, match="segment_plane"):
             ds3d.DynamicObjects(segment_plane=bad)
+    # The reported foreground is connected to the boxes: anchoring it again moves nothing.
+    again, moved = ds3d.keep_anchored_foreground(o, 0.15)
+    assert moved == 0 and np.allclose(again.foreground_points, o.foreground_points)
+    # A far-away patch with the walker's foreground moves to the background, nothing else.
+    patch = np.array([[5.0, 0.0, 6.0], [5.1, 0.0, 6.0]], np.float32)
+    extra = ds3d.DynamicObjects(boxes_3d=o.boxes_3d, foreground_points=np.vstack([fg, patch]),
+                                background_points=bg, foreground_radius=o.foreground_radius)
+    kept, moved = ds3d.keep_anchored_foreground(extra, 0.15)
+    assert moved == 2 and len(extra.foreground_points) == len(fg) + 2  # the input is unchanged
+    assert np.allclose(kept.foreground_points, fg) and np.allclose(kept.background_points[-2:], patch)
+    with pytest.raises(ValueError, match="margin"):
+        ds3d.keep_anchored_foreground(o, -1.0)
 
 
 def test_smooth_segmentation_relabels_isolated_points_and_validates():

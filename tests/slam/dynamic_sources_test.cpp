@@ -28,6 +28,7 @@
 namespace {
 
 using ds3d::DetectionsFile;
+using ds3d::Points3f;
 using ds3d::slam::DynamicObjects;
 using ds3d::slam::FrameInput;
 
@@ -538,6 +539,67 @@ TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFl
       EXPECT_NE(std::string(e.what()).find("segment_plane"), std::string::npos) << e.what();
     }
   }
+}
+
+// keep_anchored_foreground: a chain of foreground points leading out of a box stays foreground,
+// an isolated patch elsewhere moves to the background (session 17).
+TEST(KeepAnchoredForeground, KeepsWhatIsConnectedToABoxAndMovesTheRest) {
+  DynamicObjects o;
+  Eigen::Matrix<float, 8, 3> c;  // x -0.3..0.3, y -0.5..0.5, z 1.8..2.2
+  for (int i = 0; i < 8; ++i) {
+    c.row(i) << ((i & 1) ? 0.3F : -0.3F), ((i & 2) ? 0.5F : -0.5F), ((i & 4) ? 2.2F : 1.8F);
+  }
+  o.boxes_3d.push_back(c);
+  o.foreground_radius = 0.2F;
+  std::vector<Eigen::Vector3f> pts;
+  for (int k = 0; k < 5; ++k)
+    pts.emplace_back(0.0F, -0.4F + 0.2F * static_cast<float>(k), 2.0F);  // inside
+  for (int k = 1; k <= 6; ++k)
+    pts.emplace_back(0.0F, 0.4F + 0.15F * static_cast<float>(k), 2.0F);  // legs below
+  pts.emplace_back(2.0F, 0.0F, 3.0F);  // an isolated patch far away
+  pts.emplace_back(2.1F, 0.0F, 3.0F);
+  pts.emplace_back(0.0F, 1.65F, 2.0F);  // 0.35 m beyond the chain's end: not reached
+  o.foreground_points.resize(static_cast<Eigen::Index>(pts.size()) + 1, 3);
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    o.foreground_points.row(static_cast<Eigen::Index>(k)) = pts[k].transpose();
+  }
+  o.foreground_points.row(static_cast<Eigen::Index>(pts.size())).setConstant(std::nanf(""));
+  o.background_points = Points3f::Constant(2, 3, 5.0F);
+  DynamicObjects copy = o;
+  EXPECT_EQ(ds3d::slam::keep_anchored_foreground(copy, 0.1F), 3U);
+  ASSERT_EQ(copy.foreground_points.rows(), 12);  // 5 inside + 6 chained + the NaN row
+  for (Eigen::Index r = 0; r < 11; ++r) {
+    EXPECT_TRUE(copy.foreground_points.row(r).isApprox(o.foreground_points.row(r))) << r;
+  }
+  EXPECT_FALSE(copy.foreground_points.row(11).allFinite());
+  ASSERT_EQ(copy.background_points.rows(), 5);  // the two old rows, then the moved ones in order
+  EXPECT_TRUE(copy.background_points.topRows(2).isApprox(o.background_points));
+  EXPECT_TRUE(copy.background_points.row(2).isApprox(o.foreground_points.row(11)));
+  EXPECT_TRUE(copy.background_points.row(4).isApprox(o.foreground_points.row(13)));
+  // A larger radius reaches the last point; no box anchors nothing; +inf margin = the box.
+  DynamicObjects wide = o;
+  wide.foreground_radius = 0.4F;
+  EXPECT_EQ(ds3d::slam::keep_anchored_foreground(wide, 0.1F), 2U);
+  DynamicObjects none = o;
+  none.boxes_3d.clear();
+  EXPECT_EQ(ds3d::slam::keep_anchored_foreground(none, 0.1F), 14U);
+  EXPECT_EQ(none.foreground_points.rows(), 1);  // the NaN row stays
+  DynamicObjects inf = o;
+  EXPECT_EQ(ds3d::slam::keep_anchored_foreground(inf, std::numeric_limits<float>::infinity()), 3U);
+  // Errors name the function and the parameter.
+  for (const float bad : {-0.1F, std::nanf("")}) {
+    DynamicObjects b = o;
+    try {
+      (void)ds3d::slam::keep_anchored_foreground(b, bad);
+      ADD_FAILURE() << "no exception";
+    } catch (const ds3d::InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find("keep_anchored_foreground"), std::string::npos);
+      EXPECT_NE(std::string(e.what()).find("margin"), std::string::npos) << e.what();
+    }
+  }
+  DynamicObjects b = o;
+  b.foreground_radius = 0.0F;
+  EXPECT_THROW((void)ds3d::slam::keep_anchored_foreground(b, 0.1F), ds3d::InvalidArgument);
 }
 
 TEST(GeometricMotion, RejectsBadParamsAndIgnoresFramesWithoutDepth) {

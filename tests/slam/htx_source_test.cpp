@@ -447,7 +447,14 @@ TEST(HtxSource, SegmentsTheWalkerWithTheShippedModel) {
     EXPECT_FALSE(b.segment_outside_boxes);
     EXPECT_FALSE(b.segment_plane.has_value());
     EXPECT_FALSE(c.segment_plane.has_value());
-    EXPECT_FALSE(inside.detect(in, cam).segment_outside_boxes);
+    // Only the foreground connected to a box stays; the rest is reported as background.
+    const DynamicObjects d = inside.detect(in, cam);
+    EXPECT_FALSE(d.segment_outside_boxes);
+    EXPECT_EQ(a.foreground_points.rows() + a.background_points.rows(),
+              d.foreground_points.rows() + d.background_points.rows());
+    EXPECT_EQ(static_cast<std::size_t>(d.foreground_points.rows() - a.foreground_points.rows()),
+              seg.last_stats().num_unanchored);
+    EXPECT_EQ(inside.last_stats().num_unanchored, 0U);
     EXPECT_EQ(c.foreground_points.rows(), 0);
     EXPECT_TRUE(c.boxes_3d_segmented.empty());
     boxes += a.boxes_3d.size();

@@ -435,6 +435,19 @@ void bind_dynamic_sources(py::module_& m) {
       "arguments (docs/dynamic.md, session 16).");
 
   m.def(
+      "keep_anchored_foreground",
+      [](DynamicObjects objects, float margin) {
+        const std::size_t moved = ds3d::slam::keep_anchored_foreground(objects, margin);
+        return py::make_tuple(std::move(objects), moved);
+      },
+      py::arg("objects"), py::arg("margin"),
+      "Keeps as foreground only the segmented points connected to a 3-D box of `objects` (inside\n"
+      "a box grown by margin [m] >= 0 or inf, or within foreground_radius of such a point, and\n"
+      "so on); the other finite foreground points move to the background points. Returns\n"
+      "(new DynamicObjects, number moved); `objects` is not changed. ValueError on a bad margin\n"
+      "or foreground_radius (HtxSource's segment_outside_boxes; docs/dynamic.md, session 17).");
+
+  m.def(
       "make_dynamic_source",
       [](const std::string& spec, const py::object& weights, int detect_every,
          std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor,
