@@ -274,7 +274,7 @@ struct HtxSourceParams {
   /// with box_uncertainty; HtxFrameStats::num_unanchored counts the rest, reported as
   /// background): the part head's labels on furniture away from every box are not trusted. Default
   /// on since session 17: synthetic sitting_xyz recall 0.862 → 0.960 at the same precision,
-  /// Bonn ATE 0.0143 → 0.0139 m, fr3 person keypoints marked dynamic 0.514 → 0.698
+  /// Bonn ATE 0.0143 → 0.0135 m, fr3 person keypoints marked dynamic 0.514 → 0.687
   /// (docs/dynamic.md, session 17). Off: the segmentation decides inside the boxes only. Under
   /// an evidence gate ("htx&geometric", "htx&&geometric") it is not used (outside the confirmed
   /// boxes the part head has no motion evidence).
