@@ -131,6 +131,15 @@ Keypoints3f keypoint_array(const OrbFeatures& features, const cv::Mat& depth,
 
 namespace {
 
+// The finite rows of a point set (the KD-trees of the segmentation are built over them only).
+std::vector<std::uint32_t> finite_rows_of(const Points3f& pts) {
+  std::vector<std::uint32_t> rows;
+  for (Eigen::Index r = 0; r < pts.rows(); ++r) {
+    if (pts.row(r).allFinite()) rows.push_back(static_cast<std::uint32_t>(r));
+  }
+  return rows;
+}
+
 // A valid depth pixel of a window.
 struct DepthPixel {
   std::uint16_t raw;
@@ -256,14 +265,6 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
     return std::any_of(rects.begin(), rects.end(),
                        [&](const ImageBox& b) { return b.contains(u, v); });
   };
-  // The finite rows of a point set (KD-trees below are built over them only).
-  const auto finite_rows_of = [](const Points3f& pts) {
-    std::vector<std::uint32_t> rows;
-    for (Eigen::Index r = 0; r < pts.rows(); ++r) {
-      if (pts.row(r).allFinite()) rows.push_back(static_cast<std::uint32_t>(r));
-    }
-    return rows;
-  };
   // Foreground points, and background points when the source gives them (nearest-neighbour
   // label transfer), in KD-trees.
   const std::vector<std::uint32_t> finite_rows = finite_rows_of(objects.foreground_points);
@@ -288,21 +289,14 @@ void HdbscanMasker::confirm_foreground(const FrameInput& frame, const PinholeCam
   // support-plane rule of the filter: support_margin plus 3σ of the depth noise along the normal.
   std::optional<Eigen::Vector4f> plane;
   if (objects.segment_plane) {
-    const Eigen::Vector4f& p = *objects.segment_plane;
-    const float norm = p.head<3>().norm();
-    DS3D_CHECK(p.allFinite() && norm > 0.0F,
-               "ds3d::slam::HdbscanMasker::mask: objects.segment_plane must be finite with a "
-               "non-zero normal (got ",
-               p.transpose(), ")");
-    plane = p / norm;
+    plane = detail::unit_plane(*objects.segment_plane, "ds3d::slam::HdbscanMasker::mask",
+                               "objects.segment_plane");
   }
   const DynamicFilterParams& fp = filter_.params();
   const auto on_plane = [&](const Eigen::Vector3f& q, double z) {
-    if (!plane) return false;
-    const float dist = std::abs(plane->head<3>().dot(q) + plane->w());
     const auto zf = static_cast<float>(z);
-    const float sn = fp.depth_noise * zf * std::abs(plane->head<3>().dot(q));  // σ(z)·|n·ray|
-    return dist <= fp.support_margin + 3.0F * sn;
+    return plane &&
+           detail::near_plane(*plane, q, q / zf, fp.depth_noise * zf * zf, fp.support_margin);
   };
   const auto on_segment = [&](float u, float v, double z) {
     if (finite_rows.empty()) return false;
@@ -453,10 +447,7 @@ std::size_t keep_anchored_foreground(DynamicObjects& objects, float margin) {
              ": objects.foreground_radius must be finite and > 0 (got ", objects.foreground_radius,
              ")");
   Points3f& fg = objects.foreground_points;
-  std::vector<std::uint32_t> rows;  // the finite rows (tree index -> row)
-  for (Eigen::Index r = 0; r < fg.rows(); ++r) {
-    if (fg.row(r).allFinite()) rows.push_back(static_cast<std::uint32_t>(r));
-  }
+  const std::vector<std::uint32_t> rows = finite_rows_of(fg);  // tree index -> row
   if (rows.empty()) return 0;
   // Seeds: the points inside a box's solid grown by the margin (tree indices).
   std::vector<std::uint8_t> anchored(rows.size(), 0);

@@ -158,6 +158,25 @@ namespace detail {
 
 inline bool valid_depth(float z) noexcept { return std::isfinite(z) && z > 0.0F; }
 
+// `q` = (n, d) scaled to a unit normal; throws naming `fn` and `name` when it is not finite or
+// its normal is zero.
+inline Eigen::Vector4f unit_plane(const Eigen::Vector4f& q, const char* fn, const char* name) {
+  const float nn = q.head<3>().norm();
+  DS3D_CHECK(q.allFinite() && nn > 0.0F, fn, ": ", name,
+             " must be finite with a non-zero normal (got ", q.x(), ", ", q.y(), ", ", q.z(), ", ",
+             q.w(), ")");
+  return q / nn;
+}
+
+// The support-plane rule: camera-frame point `p`, seen along `ray` = ∂p/∂z with depth noise
+// `sigma_z`, lies within `margin` plus 3σ along the normal of the unit `plane` (the depth error
+// moves the point along its ray: σ along the normal is σ(z)·|n·ray|).
+inline bool near_plane(const Eigen::Vector4f& plane, const Eigen::Vector3f& p,
+                       const Eigen::Vector3f& ray, float sigma_z, float margin) noexcept {
+  const float dist = std::abs(plane.head<3>().dot(p) + plane.w());
+  return dist <= margin + 3.0F * sigma_z * std::abs(plane.head<3>().dot(ray));
+}
+
 inline float median_of(std::vector<float> v) {
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
   std::nth_element(v.begin(), mid, v.end());
@@ -194,14 +213,7 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(
   constexpr const char* f = "ds3d::DynamicFeatureFilter::filter";
   camera.validate(f);
   std::optional<Eigen::Vector4f> plane;
-  if (support_plane) {
-    const Eigen::Vector4f& q = *support_plane;
-    const float nn = q.head<3>().norm();
-    DS3D_CHECK(q.allFinite() && nn > 0.0F, f,
-               ": support_plane must be finite with a non-zero normal (got ", q.x(), ", ", q.y(),
-               ", ", q.z(), ", ", q.w(), ")");
-    plane = q / nn;
-  }
+  if (support_plane) plane = detail::unit_plane(*support_plane, f, "support_plane");
   for (std::size_t b = 0; b < boxes.size(); ++b) {
     const ImageBox& x = boxes[b];
     DS3D_CHECK(std::isfinite(x.x_min) && std::isfinite(x.y_min) && std::isfinite(x.x_max) &&
@@ -301,11 +313,9 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(
       ray[i] = Eigen::Vector3f(static_cast<float>(xn.x()), static_cast<float>(xn.y()), 1.0F);
       if (plane) {
         const float z = keypoints(r, 2);
-        const Eigen::Vector3f p = ray[i] * z;
-        const float dist = std::abs(plane->head<3>().dot(p) + plane->w());
-        // The depth error moves the point along its ray: σ along the normal is σ(z)·|n·ray|.
-        const float sn = sigma(z) * std::abs(plane->head<3>().dot(ray[i]));
-        on_support[i] = dist <= params_.support_margin + 3.0F * sn ? 1 : 0;
+        on_support[i] =
+            detail::near_plane(*plane, ray[i] * z, ray[i], sigma(z), params_.support_margin) ? 1
+                                                                                             : 0;
       }
     }
   }
