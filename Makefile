@@ -118,7 +118,7 @@ fuzz: deps
 	@mkdir -p $(FUZZ_DIR)/corpus_traj $(FUZZ_DIR)/corpus_list $(FUZZ_DIR)/corpus_camera
 	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/tum_trajectory_fuzz.cpp -o $(FUZZ_DIR)/tum_trajectory_fuzz
 	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/tum_list_fuzz.cpp -o $(FUZZ_DIR)/tum_list_fuzz
-	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/camera_fuzz.cpp src/dataset.cpp -o $(FUZZ_DIR)/camera_fuzz \
+	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/camera_fuzz.cpp src/slam/dataset.cpp -o $(FUZZ_DIR)/camera_fuzz \
 	  -lopencv_core -lopencv_imgcodecs
 	@for d in tests/data/trajectory/*/; do head -c 4000 $$d/estimate.txt > $(FUZZ_DIR)/corpus_traj/$$(basename $$d); done
 	@printf '# rgb\n1305031102.175304 rgb/1.png\n1305031102.211214,rgb/2.jpg\r\n' > $(FUZZ_DIR)/corpus_list/seed
@@ -126,7 +126,7 @@ fuzz: deps
 	$(FUZZ_DIR)/tum_trajectory_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=8192 $(FUZZ_DIR)/corpus_traj
 	$(FUZZ_DIR)/tum_list_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=4096 $(FUZZ_DIR)/corpus_list
 	$(FUZZ_DIR)/camera_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=2048 $(FUZZ_DIR)/corpus_camera
-	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/weights_io_fuzz.cpp src/weights_io.cpp src/sparse_detector.cpp \
+	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/weights_io_fuzz.cpp src/htx/weights_io.cpp src/htx/sparse_detector.cpp \
 	  -o $(FUZZ_DIR)/weights_io_fuzz
 	@mkdir -p $(FUZZ_DIR)/corpus_weights && cp tests/data/htx/*.safetensors $(FUZZ_DIR)/corpus_weights/
 	$(FUZZ_DIR)/weights_io_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=65536 $(FUZZ_DIR)/corpus_weights

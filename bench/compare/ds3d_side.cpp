@@ -4,10 +4,10 @@
 
 #include <cmath>
 
-#include "ds3d/radius_outlier.hpp"
-#include "ds3d/ransac_plane.hpp"
-#include "ds3d/rgbd.hpp"
-#include "ds3d/voxel_grid.hpp"
+#include "ds3d/preprocess/radius_outlier.hpp"
+#include "ds3d/preprocess/ransac_plane.hpp"
+#include "ds3d/preprocess/rgbd.hpp"
+#include "ds3d/preprocess/voxel_grid.hpp"
 #include "support/depth_scene.hpp"
 
 namespace ds3d_side {

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "ds3d/bundle_adjustment.hpp"
+#include "ds3d/slam/bundle_adjustment.hpp"
 #include "support/synthetic.hpp"
 
 namespace {

@@ -24,9 +24,9 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "ds3d/dynamic_sources.hpp"
-#include "ds3d/orb_features.hpp"
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/dynamic/dynamic_sources.hpp"
+#include "ds3d/slam/orb_features.hpp"
+#include "ds3d/slam/synth.hpp"
 
 namespace {
 

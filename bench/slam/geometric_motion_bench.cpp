@@ -10,8 +10,8 @@
 
 #include <opencv2/core/utility.hpp>
 
-#include "ds3d/geometric_motion.hpp"
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/dynamic/geometric_motion.hpp"
+#include "ds3d/slam/synth.hpp"
 #include "support/synth_frames.hpp"
 
 namespace {

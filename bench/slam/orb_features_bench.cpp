@@ -9,8 +9,8 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "ds3d/orb_features.hpp"
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/orb_features.hpp"
+#include "ds3d/slam/synth.hpp"
 
 namespace {
 

@@ -6,10 +6,10 @@
 
 #include <opencv2/core/utility.hpp>
 
-#include "ds3d/bundle_adjustment.hpp"
-#include "ds3d/orb_features.hpp"
-#include "ds3d/slam_frontend.hpp"
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/bundle_adjustment.hpp"
+#include "ds3d/slam/orb_features.hpp"
+#include "ds3d/slam/slam_frontend.hpp"
+#include "ds3d/slam/synth.hpp"
 #include "support/synth_frames.hpp"
 #include "support/synthetic.hpp"
 

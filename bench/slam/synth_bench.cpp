@@ -8,7 +8,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/synth.hpp"
 
 namespace {
 

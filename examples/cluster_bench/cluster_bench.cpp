@@ -16,7 +16,7 @@
 
 #include <benchmark/benchmark.h>
 
-#include <ds3d/hdbscan.hpp>
+#include <ds3d/cluster/hdbscan.hpp>
 
 namespace {
 

@@ -3,7 +3,7 @@
 // Linking ds3d::ds3d (core + the compiled slam library) from an installed package.
 #include <cstdio>
 
-#include <ds3d/build_info.hpp>
+#include <ds3d/slam/build_info.hpp>
 #include <ds3d/ds3d.hpp>
 
 int main() {

@@ -2,9 +2,9 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // What this shows: an existing RGB-D SLAM system ("toyslam", with its OWN keypoint, frame and
 // map-point types) includes ds3d's header-only core (no OpenCV, no Ceres) to
-//   1. drop keypoints on people before tracking: box-gated HDBSCAN (ds3d/dynamic_filter.hpp),
+//   1. drop keypoints on people before tracking: box-gated HDBSCAN (ds3d/dynamic/dynamic_filter.hpp),
 //      fed with its keypoints and the person boxes of some detector;
-//   2. preprocess its own point cloud through a PointCloudTraits adaptor (ds3d/preprocess.hpp):
+//   2. preprocess its own point cloud through a PointCloudTraits adaptor (ds3d/preprocess/preprocess.hpp):
 //      voxel centroids, floor removal, outlier removal.
 // The frames are made in code: a room (floor, back and side walls) and a person in front of the
 // back wall who walks to the right; the detector misses the person on the last frame, where the
@@ -20,8 +20,8 @@
 #include <vector>
 
 #include <ds3d/cloud.hpp>
-#include <ds3d/dynamic_filter.hpp>
-#include <ds3d/preprocess.hpp>
+#include <ds3d/dynamic/dynamic_filter.hpp>
+#include <ds3d/preprocess/preprocess.hpp>
 #include <ds3d/version.hpp>
 
 // ---------------------------------------------------------------------------------------------

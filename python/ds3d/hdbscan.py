@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
-"""HDBSCAN* with the keyword names of the reference ``hdbscan`` library (see ds3d/hdbscan.hpp).
+"""HDBSCAN* with the keyword names of the reference ``hdbscan`` library (see ds3d/cluster/hdbscan.hpp).
 
 ``ds3d.hdbscan(points, ...)`` returns an :class:`HdbscanResult` whose partitions, probabilities
 and outlier scores match hdbscan 0.8.43 (algorithm='prims_kdtree', i.e. exact HDBSCAN*).

@@ -9,7 +9,7 @@
 #include <iostream>
 #include <string>
 
-#include "ds3d/build_info.hpp"
+#include "ds3d/slam/build_info.hpp"
 #include "ds3d_demo/demo.hpp"
 
 int main(int argc, char** argv) {

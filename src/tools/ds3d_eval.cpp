@@ -15,9 +15,9 @@
 
 #include "ds3d/detail/json.hpp"
 #include "ds3d/errors.hpp"
-#include "ds3d/trajectory.hpp"
-#include "ds3d/trajectory_metrics.hpp"
-#include "ds3d/trajectory_plot.hpp"
+#include "ds3d/eval/trajectory.hpp"
+#include "ds3d/eval/trajectory_metrics.hpp"
+#include "ds3d/slam/trajectory_plot.hpp"
 
 namespace {
 

@@ -30,12 +30,12 @@
 // detail::write_file_atomically (trajectory.hpp); silence it for these headers only.
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wrestrict"
-#include "ds3d/dataset.hpp"
+#include "ds3d/slam/dataset.hpp"
 #include "ds3d/detail/json.hpp"
-#include "ds3d/dynamic_sources.hpp"
+#include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
-#include "ds3d/slam_frontend.hpp"
-#include "ds3d/trajectory.hpp"
+#include "ds3d/slam/slam_frontend.hpp"
+#include "ds3d/eval/trajectory.hpp"
 #pragma GCC diagnostic pop
 
 namespace {

@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/synth.hpp"
 
 namespace {
 

@@ -6,7 +6,7 @@
 #include <cstdlib>
 #include <string_view>
 
-#include "ds3d/dataset.hpp"
+#include "ds3d/slam/dataset.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

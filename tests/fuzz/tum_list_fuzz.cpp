@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "ds3d/detail/tum_text.hpp"
-#include "ds3d/trajectory_metrics.hpp"
+#include "ds3d/eval/trajectory_metrics.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
-#include "ds3d/bundle_adjustment.hpp"
+#include "ds3d/slam/bundle_adjustment.hpp"
 
 #include <cmath>
 #include <vector>

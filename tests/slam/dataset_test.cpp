@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // TUM/Bonn folder reading: association, camera presets and camera.txt, clear errors, real data.
-#include "ds3d/dataset.hpp"
+#include "ds3d/slam/dataset.hpp"
 
 #include <gtest/gtest.h>
 

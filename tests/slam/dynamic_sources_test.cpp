@@ -2,7 +2,7 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // Tests of the SLAM-side dynamic stages: the detections file reader, FileSource, HdbscanMasker,
 // GeometricMotionSource, and (when ../shared/data exists) measurements on recorded frames.
-#include "ds3d/dynamic_sources.hpp"
+#include "ds3d/slam/dynamic/dynamic_sources.hpp"
 
 #include <gtest/gtest.h>
 
@@ -20,9 +20,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "ds3d/dataset.hpp"
-#include "ds3d/geometric_motion.hpp"
-#include "ds3d/preprocess.hpp"
+#include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/dynamic/geometric_motion.hpp"
+#include "ds3d/preprocess/preprocess.hpp"
 #include "support/files.hpp"
 
 namespace {

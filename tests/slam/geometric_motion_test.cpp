@@ -30,7 +30,7 @@
 // DS3D_GEOM_TEST_HTX_SMOOTHING=W sets HtxSourceParams::segment_smoothing, and
 // DS3D_GEOM_TEST_ORACLE_RELABEL=1 relabels the source's own segmented points by the generator's
 // mask at their pixels (the ceiling of a perfect part head at the network's point resolution).
-#include "ds3d/geometric_motion.hpp"
+#include "ds3d/slam/dynamic/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
 
@@ -50,9 +50,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "ds3d/dataset.hpp"
-#include "ds3d/dynamic_sources.hpp"
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/dynamic/dynamic_sources.hpp"
+#include "ds3d/slam/synth.hpp"
 #include "support/files.hpp"
 
 namespace {

@@ -23,11 +23,11 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "ds3d/dynamic_sources.hpp"
+#include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
-#include "ds3d/geometric_motion.hpp"
-#include "ds3d/sparse_detector.hpp"
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/dynamic/geometric_motion.hpp"
+#include "ds3d/htx/sparse_detector.hpp"
+#include "ds3d/slam/synth.hpp"
 #include "support/files.hpp"
 
 namespace {

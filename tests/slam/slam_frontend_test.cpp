@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
-#include "ds3d/slam_frontend.hpp"
+#include "ds3d/slam/slam_frontend.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -11,8 +11,8 @@
 #include <gtest/gtest.h>
 
 #include "ds3d/errors.hpp"
-#include "ds3d/synth.hpp"
-#include "ds3d/trajectory_metrics.hpp"
+#include "ds3d/slam/synth.hpp"
+#include "ds3d/eval/trajectory_metrics.hpp"
 #include "support/synth_frames.hpp"
 
 namespace {

@@ -2,7 +2,7 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // Synthetic dynamic RGB-D generator: determinism, masks vs boxes, depth model, ORB texture,
 // camera trajectories, the written TUM folder.
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/synth.hpp"
 
 #include <gtest/gtest.h>
 
@@ -16,9 +16,9 @@
 
 #include <opencv2/features2d.hpp>
 
-#include "ds3d/dataset.hpp"
+#include "ds3d/slam/dataset.hpp"
 #include "ds3d/detail/json.hpp"
-#include "ds3d/trajectory_metrics.hpp"
+#include "ds3d/eval/trajectory_metrics.hpp"
 #include "support/files.hpp"
 
 namespace {

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // The ATE plot, and the ds3d-eval CLI against the TUM scripts' printed output of every fixture.
-#include "ds3d/trajectory_plot.hpp"
+#include "ds3d/slam/trajectory_plot.hpp"
 
 #include <gtest/gtest.h>
 

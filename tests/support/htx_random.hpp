@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "ds3d/sparse_detector.hpp"
-#include "ds3d/weights_io.hpp"
+#include "ds3d/htx/sparse_detector.hpp"
+#include "ds3d/htx/weights_io.hpp"
 #include "support/synthetic.hpp"
 
 namespace ds3d::test {

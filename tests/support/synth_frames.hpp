@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/synth.hpp"
 
 namespace ds3d::test {
 

@@ -13,7 +13,7 @@
 #include <optional>
 #include <vector>
 
-#include "ds3d/dynamic_filter.hpp"
+#include "ds3d/dynamic/dynamic_filter.hpp"
 
 namespace ds3d {
 

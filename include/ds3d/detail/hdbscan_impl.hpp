@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
 #pragma once
-// Implementation of ds3d/hdbscan.hpp. Each step follows the reference hdbscan 0.8.43 rules
+// Implementation of ds3d/cluster/hdbscan.hpp. Each step follows the reference hdbscan 0.8.43 rules
 // recorded in tests/data/hdbscan/README.md (numbers in comments refer to its list). Not API.
 
 #include <algorithm>
@@ -17,7 +17,7 @@
 #include "ds3d/detail/mst.hpp"
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/errors.hpp"
-#include "ds3d/hdbscan.hpp"
+#include "ds3d/cluster/hdbscan.hpp"
 
 namespace ds3d {
 

@@ -2,7 +2,7 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 #pragma once
 // Exact minimum spanning trees of the mutual-reachability graph
-// d_mr(i,j) = max{core(i), core(j), d(i,j)}. Not API: see ds3d/hdbscan.hpp.
+// d_mr(i,j) = max{core(i), core(j), d(i,j)}. Not API: see ds3d/cluster/hdbscan.hpp.
 
 #include <algorithm>
 #include <bit>
@@ -25,7 +25,7 @@
 #include "ds3d/detail/box_bounds.hpp"
 #include "ds3d/detail/kdtree_nd.hpp"
 #include "ds3d/detail/parallel.hpp"
-#include "ds3d/hdbscan.hpp"
+#include "ds3d/cluster/hdbscan.hpp"
 
 namespace ds3d::detail {
 

@@ -6,7 +6,7 @@
 #include <chrono>
 
 #include "ds3d/detail/parallel.hpp"
-#include "ds3d/preprocess.hpp"
+#include "ds3d/preprocess/preprocess.hpp"
 
 namespace ds3d {
 

@@ -11,7 +11,7 @@
 #include "ds3d/detail/kdtree.hpp"
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/detail/voxel_key.hpp"
-#include "ds3d/radius_outlier.hpp"
+#include "ds3d/preprocess/radius_outlier.hpp"
 
 namespace ds3d {
 

@@ -11,7 +11,7 @@
 
 #include "ds3d/detail/finite_points.hpp"
 #include "ds3d/detail/parallel.hpp"
-#include "ds3d/ransac_plane.hpp"
+#include "ds3d/preprocess/ransac_plane.hpp"
 
 namespace ds3d {
 

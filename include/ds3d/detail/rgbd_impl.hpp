@@ -7,7 +7,7 @@
 #include <type_traits>
 #include <utility>
 
-#include "ds3d/rgbd.hpp"
+#include "ds3d/preprocess/rgbd.hpp"
 
 namespace ds3d {
 

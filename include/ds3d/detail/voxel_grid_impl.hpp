@@ -10,7 +10,7 @@
 
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/detail/voxel_key.hpp"
-#include "ds3d/voxel_grid.hpp"
+#include "ds3d/preprocess/voxel_grid.hpp"
 
 namespace ds3d {
 

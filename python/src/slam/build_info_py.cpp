@@ -3,7 +3,7 @@
 // Bindings for include/ds3d/build_info.hpp.
 #include <pybind11/pybind11.h>
 
-#include "ds3d/build_info.hpp"
+#include "ds3d/slam/build_info.hpp"
 
 namespace py = pybind11;
 

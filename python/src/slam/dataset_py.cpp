@@ -10,7 +10,7 @@
 #include <optional>
 #include <string>
 
-#include "ds3d/dataset.hpp"
+#include "ds3d/slam/dataset.hpp"
 #include "slam_py_util.hpp"
 
 namespace py = pybind11;

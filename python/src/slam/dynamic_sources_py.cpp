@@ -15,7 +15,7 @@
 #include <string>
 
 #include "../numpy_util.hpp"
-#include "ds3d/dynamic_sources.hpp"
+#include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "slam_py_util.hpp"
 
 namespace py = pybind11;

@@ -11,7 +11,7 @@
 #include <sstream>
 #include <string>
 
-#include "ds3d/geometric_motion.hpp"
+#include "ds3d/slam/dynamic/geometric_motion.hpp"
 #include "slam_py_util.hpp"
 
 namespace py = pybind11;

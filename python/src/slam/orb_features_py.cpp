@@ -9,7 +9,7 @@
 #include <sstream>
 #include <string>
 
-#include "ds3d/orb_features.hpp"
+#include "ds3d/slam/orb_features.hpp"
 #include "slam_py_util.hpp"
 
 namespace py = pybind11;

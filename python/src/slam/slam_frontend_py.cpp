@@ -10,10 +10,10 @@
 #include <optional>
 #include <string>
 
-#include "ds3d/dataset.hpp"
-#include "ds3d/dynamic_sources.hpp"
+#include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
-#include "ds3d/slam_frontend.hpp"
+#include "ds3d/slam/slam_frontend.hpp"
 
 namespace py = pybind11;
 using ds3d::slam::FrontendConfig;

@@ -16,7 +16,7 @@
 #include <opencv2/core.hpp>
 
 #include "ds3d/camera.hpp"
-#include "ds3d/dataset.hpp"
+#include "ds3d/slam/dataset.hpp"
 #include "ds3d/errors.hpp"
 
 namespace ds3d::py_slam {

@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
-#include "ds3d/dataset.hpp"
+#include "ds3d/slam/dataset.hpp"
 #include "ds3d/errors.hpp"
-#include "ds3d/synth.hpp"
+#include "ds3d/slam/synth.hpp"
 #include "slam_py_util.hpp"
 
 namespace py = pybind11;

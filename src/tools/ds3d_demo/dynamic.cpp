@@ -13,12 +13,12 @@
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wrestrict"
-#include "ds3d/dynamic_sources.hpp"
-#include "ds3d/geometric_motion.hpp"
-#include "ds3d/slam_frontend.hpp"
-#include "ds3d/synth.hpp"
-#include "ds3d/trajectory.hpp"
-#include "ds3d/trajectory_metrics.hpp"
+#include "ds3d/slam/dynamic/dynamic_sources.hpp"
+#include "ds3d/slam/dynamic/geometric_motion.hpp"
+#include "ds3d/slam/slam_frontend.hpp"
+#include "ds3d/slam/synth.hpp"
+#include "ds3d/eval/trajectory.hpp"
+#include "ds3d/eval/trajectory_metrics.hpp"
 #pragma GCC diagnostic pop
 #include "ds3d_demo/demo.hpp"
 

@@ -9,11 +9,11 @@
 #include <iostream>
 #include <random>
 
-#include "ds3d/dataset.hpp"
-#include "ds3d/synth.hpp"
-#include "ds3d/trajectory.hpp"
-#include "ds3d/trajectory_metrics.hpp"
-#include "ds3d/trajectory_plot.hpp"
+#include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/synth.hpp"
+#include "ds3d/eval/trajectory.hpp"
+#include "ds3d/eval/trajectory_metrics.hpp"
+#include "ds3d/slam/trajectory_plot.hpp"
 #include "ds3d_demo/demo.hpp"
 
 namespace {

@@ -11,7 +11,7 @@
 #include <random>
 #include <vector>
 
-#include "ds3d/hdbscan.hpp"
+#include "ds3d/cluster/hdbscan.hpp"
 #include "ds3d_demo/demo.hpp"
 
 namespace {

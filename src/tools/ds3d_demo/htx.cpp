@@ -8,9 +8,9 @@
 #include <random>
 #include <vector>
 
-#include "ds3d/part_a2_targets.hpp"
-#include "ds3d/sparse_detector.hpp"
-#include "ds3d/weights_io.hpp"
+#include "ds3d/htx/part_a2_targets.hpp"
+#include "ds3d/htx/sparse_detector.hpp"
+#include "ds3d/htx/weights_io.hpp"
 #include "ds3d_demo/demo.hpp"
 
 namespace {

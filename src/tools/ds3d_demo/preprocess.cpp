@@ -11,7 +11,7 @@
 #include <limits>
 #include <vector>
 
-#include "ds3d/preprocess.hpp"
+#include "ds3d/preprocess/preprocess.hpp"
 #include "ds3d_demo/demo.hpp"
 
 namespace {

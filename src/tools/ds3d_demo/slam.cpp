@@ -6,10 +6,10 @@
 // GCC 12 -O3 false -Wrestrict in trajectory.hpp's file writer (see ds3d_slam.cpp).
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wrestrict"
-#include "ds3d/slam_frontend.hpp"
-#include "ds3d/synth.hpp"
-#include "ds3d/trajectory.hpp"
-#include "ds3d/trajectory_metrics.hpp"
+#include "ds3d/slam/slam_frontend.hpp"
+#include "ds3d/slam/synth.hpp"
+#include "ds3d/eval/trajectory.hpp"
+#include "ds3d/eval/trajectory_metrics.hpp"
 #pragma GCC diagnostic pop
 #include "ds3d_demo/demo.hpp"
 

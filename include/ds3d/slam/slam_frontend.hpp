@@ -1,0 +1,390 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#pragma once
+/// @file slam_frontend.hpp
+/// @brief A minimal ORB-SLAM2-style RGB-D SLAM front-end (tracking + local mapping) with the
+/// dynamic-feature hooks of 3DS-SLAM (ds3d::slam; OpenCV + Ceres).
+///
+/// Method (Mur-Artal & Tardós 2017, "ORB-SLAM2", §III-A and §V, RGB-D case):
+/// - each frame gets grid-spread ORB features with a depth each (orb_features.hpp);
+/// - tracking predicts the pose with a constant-velocity model, matches the last frame's map
+///   points by projection and optimises the pose (bundle_adjustment.hpp: Ceres, Huber, four χ²
+///   rounds); it falls back to descriptor matching against the reference keyframe (+ PnP-RANSAC),
+///   then to relocalisation against past keyframes; it then tracks the local map (points of the
+///   covisible keyframes) and optimises again;
+/// - a keyframe is inserted by ORB-SLAM2's policy; it creates map points from depth, updates the
+///   covisibility graph, culls weak recent points and launches a local bundle adjustment over the
+///   covisible window with the other observing keyframes fixed.
+///
+/// Between feature extraction and tracking sit the two stages 3DS-SLAM adds (Shen et al.): a
+/// DynamicObjectSource (e.g. a 3-D detector) and a DynamicFeatureMasker (e.g. HDBSCAN-based
+/// filtering) that marks keypoints on moving objects; marked keypoints never reach tracking.
+/// The `none` implementations keep every feature.
+///
+/// Determinism: local BA runs in a mapping thread on a snapshot of the map, and its result is
+/// applied exactly `ba_apply_lag` frames after the keyframe that launched it (tracking waits if
+/// it is not done). Output is therefore identical with or without the thread, for any timing.
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <opencv2/core.hpp>
+
+#include "ds3d/slam/bundle_adjustment.hpp"
+#include "ds3d/camera.hpp"
+#include "ds3d/cloud.hpp"
+#include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/orb_features.hpp"
+#include "ds3d/eval/trajectory.hpp"
+
+namespace ds3d::slam {
+
+/// One RGB-D frame as given to the stages (a view: the images are shared, not copied).
+struct FrameInput {
+  std::size_t index = 0;  ///< position in the input sequence (0-based)
+  double timestamp = 0;   ///< [s], non-decreasing along the sequence
+  cv::Mat rgb;            ///< CV_8UC3 BGR (or CV_8UC1 grey), camera.width × camera.height
+  cv::Mat depth;          ///< CV_16UC1, camera.depth_scale units per metre, 0 = none; may be empty
+};
+
+/// What a dynamic-object source found in one frame. All members are optional (empty = nothing).
+struct DynamicObjects {
+  std::vector<cv::Rect2f> boxes_2d;  ///< image boxes of moving objects [px, raw image]
+  std::vector<float> scores;         ///< one confidence per 2-D box in [0, 1], or empty
+  std::vector<Eigen::Matrix<float, 8, 3>> boxes_3d;  ///< corners of 3-D boxes, camera frame [m]
+  cv::Mat pixel_mask;  ///< CV_8UC1 image-sized mask, non-zero = dynamic; or empty
+  /// Metric uncertainty [m] of each 3-D box, one per boxes_3d entry, or empty (= all infinite).
+  /// With a finite value the masker gates keypoints by the oriented box grown by it (3-D
+  /// containment); infinite (or a box whose corners are not a cuboid): by the box's image
+  /// rectangle and depth range only, as for sources that give loose evidence boxes.
+  std::vector<float> boxes_3d_margin;
+  /// The supporting plane (floor) in the camera frame, (n, d) with n·p + d = 0, when the source
+  /// found one; the masker keeps keypoints on it static (dynamic_filter.hpp).
+  std::optional<Eigen::Vector4f> support_plane;
+  /// Points the source segmented as lying on its objects [m, camera frame], e.g. HtxSource's
+  /// part-head foreground (HtxSourceParams::segment). Used only for the 3-D boxes flagged in
+  /// boxes_3d_segmented: the masker keeps a keypoint that such a box made dynamic only when the
+  /// keypoint's 3-D point lies within foreground_radius of one of these points (see
+  /// HdbscanMasker). Non-finite rows are ignored.
+  Points3f foreground_points;
+  /// Points the same segmentation put off the objects [m, camera frame] (e.g. HtxSource's other
+  /// input points), or empty. When given, a keypoint counts as on the segment only if, besides
+  /// lying within foreground_radius of a foreground point, its nearest foreground point is no
+  /// farther than its nearest background point (nearest-neighbour label transfer): a seat under
+  /// a seated person's thighs is then not confirmed by the thigh points next to it. Non-finite
+  /// rows are ignored.
+  Points3f background_points;
+  /// One per boxes_3d entry, or empty (= none): non-zero = the box comes with the segmentation
+  /// in foreground_points, so its dynamic keypoints are confirmed against it.
+  std::vector<std::uint8_t> boxes_3d_segmented;
+  /// The plane (n, d), n·p + d = 0 in the camera frame (n need not be unit length), that the
+  /// segmentation's source removed from its input before segmenting (HtxSource: the floor that
+  /// preprocess found), or none. The segmentation gives no label there, so a keypoint on it
+  /// (within DynamicFilterParams::support_margin plus 3σ of its depth noise along the normal, the
+  /// rule of support_plane) counts as off the segment: the floor around a person's feet lies
+  /// next to foreground points and has no background points of its own. Unlike support_plane it
+  /// takes no part in the filter's gating.
+  std::optional<Eigen::Vector4f> segment_plane;
+  /// The segmentation covers the whole frame, not only its boxes: outside every unsegmented
+  /// box's image rectangle, each keypoint is decided by the segmentation as inside a segmented
+  /// box's rectangle, and a keypoint the filter kept static becomes dynamic when it passes the
+  /// segmentation test even where no box gated it (a body part outside a box that is too small,
+  /// misplaced or missed in this frame). Used only in frames with at least one segmented box.
+  bool segment_outside_boxes = false;
+  /// Largest distance [m] from a keypoint's 3-D point to a foreground point for the keypoint to
+  /// count as on the segment; > 0. HtxSource sets twice its voxel leaf.
+  float foreground_radius = 0.2F;
+};
+
+/// Stage "dynamic-object source": finds moving objects in a frame (runs beside feature
+/// extraction, as 3DS-SLAM's detection thread). Called once per frame, in frame order, from one
+/// thread at a time, so implementations may keep state across frames.
+class DynamicObjectSource {
+ public:
+  virtual ~DynamicObjectSource() = default;
+  /// Objects in `frame`. Must not throw for a valid frame; "nothing found" = empty result.
+  virtual DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) = 0;
+  /// Short name for logs and stats (e.g. "none", "htx").
+  [[nodiscard]] virtual std::string name() const = 0;
+};
+
+/// Stage "dynamic filter": decides which keypoints lie on moving objects. Called once per frame,
+/// in frame order, from one thread at a time.
+class DynamicFeatureMasker {
+ public:
+  virtual ~DynamicFeatureMasker() = default;
+  /// One byte per keypoint of `features` (same order): non-zero = dynamic, dropped before tracking.
+  virtual std::vector<std::uint8_t> mask(const FrameInput& frame, const PinholeCamera& camera,
+                                         const OrbFeatures& features,
+                                         const DynamicObjects& objects) = 0;
+  /// Short name for logs and stats (e.g. "none", "hdbscan").
+  [[nodiscard]] virtual std::string name() const = 0;
+};
+
+/// The `none` source: finds nothing.
+class NoDynamicObjects final : public DynamicObjectSource {
+ public:
+  DynamicObjects detect(const FrameInput&, const PinholeCamera&) override { return {}; }
+  [[nodiscard]] std::string name() const override { return "none"; }
+};
+
+/// The `none` filter: keeps every keypoint.
+class NoDynamicMasker final : public DynamicFeatureMasker {
+ public:
+  std::vector<std::uint8_t> mask(const FrameInput&, const PinholeCamera&,
+                                 const OrbFeatures& features, const DynamicObjects&) override {
+    return std::vector<std::uint8_t>(features.size(), 0);
+  }
+  [[nodiscard]] std::string name() const override { return "none"; }
+};
+
+/// Configuration of SlamFrontend. Defaults follow ORB-SLAM2's TUM RGB-D settings.
+struct FrontendConfig {
+  PinholeCamera camera;          ///< intrinsics, distortion and depth scale of the input
+  OrbParams orb;                 ///< feature extraction (orb.max_depth = close/far threshold)
+  PoseOptimizerParams pose;      ///< pose-only optimisation
+  LocalBaParams local_ba;        ///< local bundle adjustment
+  double bf = 40.0;              ///< virtual stereo baseline × fx [px·m] for depth residuals, > 0
+  int min_init_points = 100;     ///< keypoints with depth needed to start the map, >= 10
+  int min_tracked_inliers = 30;  ///< local-map inliers for a frame to count as tracked, >= 10
+  int keyframe_max_gap = 30;     ///< insert a keyframe at least every this many frames, >= 1
+  int local_window = 10;         ///< keyframes optimised by local BA (covisible window), >= 2
+  int max_fixed_keyframes = 20;  ///< other observing keyframes held fixed in local BA, >= 1
+  bool enable_local_ba = true;   ///< run local BA on every new keyframe
+  bool fuse_neighbors = false;   ///< merge duplicate map points with the covisible keyframes on
+                                 ///< keyframe insertion (ORB-SLAM2's SearchInNeighbors + Fuse);
+                                 ///< off by default: −3 % ATE on fr1_xyz but 5× worse on Bonn
+                                 ///< crowd without a dynamic filter (docs/slam.md)
+  bool mapping_thread = true;    ///< run local BA in its own thread (results are identical)
+  bool final_global_ba = true;   ///< finish() runs a BA over all keyframes and points (first fixed)
+  int ba_apply_lag = 3;  ///< frames after a keyframe at which its BA result is applied, >= 0
+  int relocalisation_candidates = 30;  ///< most recent keyframes tried when lost, >= 1
+  int reanchor_after_lost = 10;  ///< consecutive lost frames after which a new map segment starts
+                                 ///< at the last pose (0 = never), >= 0
+  double keyframe_ref_ratio = 0.75;  ///< a keyframe is needed when the frame tracks fewer than
+                                     ///< this fraction of the reference keyframe's well-observed
+                                     ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
+  /// finish(): re-optimise every tracked non-keyframe pose against the final map with the
+  /// matches it was tracked with (pose-only, as in tracking); keyframes keep theirs. Keeps ≈ 50 B
+  /// per match until finish() (≈ 20 kB a frame): turn off for very long sequences.
+  bool refine_frame_poses = true;
+  int refine_rounds = 2;  ///< after that refinement: rounds of (move every map point using all
+                          ///< frames' matches, poses fixed; refine the frames again), >= 0
+  /// Keyframe culling (local keyframe culling of ORB-SLAM, Mur-Artal, Montiel & Tardós 2015,
+  /// §VI-E, as ORB-SLAM2's LocalMapping::KeyFrameCulling): after each local BA is applied, a
+  /// covisible neighbour of the keyframe that launched it is removed when more than
+  /// `keyframe_redundancy_ratio` of its close map points (depth <= orb.max_depth) are seen by at
+  /// least `keyframe_redundant_observers` other keyframes at the same or a finer scale (octave <=
+  /// its octave + 1). Keyframe 0, the current reference keyframe, keyframes newer than the
+  /// launching one and keyframes in a pending BA snapshot are never removed. Frames keep their
+  /// poses through a re-parenting. On by default: no keyframe is culled on fr1_xyz or Bonn crowd
+  /// (identical output), and a 1,500-frame synthetic sequence keeps 217 of 383 keyframes at the
+  /// same ATE (docs/slam.md).
+  /// @note Costs O(covisible keyframes × their points × observations) per local BA.
+  bool cull_keyframes = true;
+  double keyframe_redundancy_ratio = 0.9;  ///< see cull_keyframes (ORB-SLAM2: 0.9), in (0, 1]
+  int keyframe_redundant_observers = 3;    ///< see cull_keyframes (ORB-SLAM2: 3), >= 1
+  void validate() const;                   ///< throws ds3d::InvalidArgument naming the bad field
+};
+
+/// Tracking state of a frame.
+enum class TrackState : std::uint8_t {
+  kNotInitialized,  ///< no map yet (not enough depth so far)
+  kInitialized,     ///< this frame created the first keyframe
+  kTracking,        ///< tracked against the map
+  kRelocalized,     ///< recovered by relocalisation
+  kLost,            ///< not tracked: the reported pose is the last known one
+  kReanchored,      ///< lost too long: a new map segment starts at the last known pose
+};
+/// Lower-case name of a TrackState ("tracking", "lost", ...).
+[[nodiscard]] const char* to_string(TrackState s) noexcept;
+
+/// Per-keypoint status in TrackResult::keypoint_status.
+enum class KeypointStatus : std::uint8_t { kUnmatched = 0, kTracked = 1, kDynamic = 2 };
+
+/// Per-stage times of one frame [ms]: wall time, and the CPU time of the thread that ran the
+/// stage (CPU time does not grow when other processes compete for the cores).
+struct StageTimes {
+  double extract_ms = 0;      ///< ORB extraction (+ undistortion, depth lookup), wall
+  double detect_ms = 0;       ///< dynamic-object source, wall
+  double filter_ms = 0;       ///< dynamic filter, wall
+  double track_ms = 0;        ///< tracking (+ keyframe insertion, BA scheduling/applying), wall
+  double extract_cpu_ms = 0;  ///< extraction, thread CPU time
+  double track_cpu_ms = 0;    ///< tracking, thread CPU time
+};
+
+/// The outcome of tracking one frame.
+struct TrackResult {
+  std::size_t index = 0;                                          ///< frame index
+  double timestamp = 0;                                           ///< [s]
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< online estimate
+  TrackState state = TrackState::kNotInitialized;                 ///< see TrackState
+  bool tracked = false;                ///< state is kInitialized, kTracking or kRelocalized
+  bool keyframe = false;               ///< this frame became a keyframe
+  int num_features = 0;                ///< keypoints extracted
+  int num_dynamic = 0;                 ///< keypoints the dynamic filter removed
+  int num_inliers = 0;                 ///< map-point matches kept by the last pose optimisation
+  std::vector<cv::Point2f> keypoints;  ///< raw pixel of every extracted keypoint
+  std::vector<KeypointStatus> keypoint_status;  ///< one per keypoint
+  StageTimes times;                             ///< stage timings
+};
+
+/// A frame after the extraction and dynamic stages (what the tracking stage consumes).
+struct PreparedFrame {
+  FrameInput input;                   ///< the frame itself
+  OrbFeatures features;               ///< all extracted features
+  DynamicObjects objects;             ///< from the dynamic-object source
+  std::vector<std::uint8_t> dynamic;  ///< one per feature, non-zero = removed
+  StageTimes times;                   ///< extract/detect/filter filled in
+};
+
+/// A timestamped pose (camera-to-world).
+struct FramePose {
+  std::size_t index = 0;                                          ///< frame index
+  double timestamp = 0;                                           ///< [s]
+  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< camera → world
+  bool tracked = false;  ///< false: carried over from the last tracked frame
+};
+
+/// A keyframe removed by keyframe culling (FrontendConfig::cull_keyframes), with the figures of
+/// the redundancy test at the moment it was removed.
+struct CulledKeyframe {
+  std::size_t frame_index = 0;  ///< input frame that created the keyframe
+  double timestamp = 0;         ///< [s]
+  std::size_t at_frame = 0;     ///< input frame during which it was removed
+  int close_points = 0;         ///< its map points with depth in (0, orb.max_depth]
+  int redundant_points = 0;     ///< of those, points seen by enough other keyframes at <= scale+1
+};
+
+/// RGB-D SLAM front-end: feed frames in time order, read poses.
+///
+/// Usage: `SlamFrontend slam(cfg); for (...) { auto r = slam.track(rgb, depth, t); }
+/// slam.finish(); auto traj = slam.trajectory();`
+/// @note Not thread-safe: call track() from one thread. extract() and the const queries may be
+///       called concurrently with each other, never concurrently with track()/finish().
+class SlamFrontend {
+ public:
+  /// @throws ds3d::InvalidArgument on a bad config.
+  explicit SlamFrontend(FrontendConfig config,
+                        std::shared_ptr<DynamicObjectSource> source = nullptr,
+                        std::shared_ptr<DynamicFeatureMasker> masker = nullptr);
+  ~SlamFrontend();
+  /// Moves the front-end; the source is left empty (only destruction and assignment are valid).
+  SlamFrontend(SlamFrontend&&) noexcept;
+  /// Move assignment; the source is left empty.
+  SlamFrontend& operator=(SlamFrontend&&) noexcept;
+  SlamFrontend(const SlamFrontend&) = delete;
+  SlamFrontend& operator=(const SlamFrontend&) = delete;
+
+  /// Runs every stage on one frame (on the calling thread) and returns its pose.
+  /// @param rgb   CV_8UC3 BGR or CV_8UC1, camera size
+  /// @param depth CV_16UC1 of the same size, or empty (then tracking relies on the map only)
+  /// @param timestamp [s], finite, >= the previous frame's
+  /// @throws ds3d::InvalidArgument on bad images or a timestamp earlier than the previous one.
+  /// @note Never throws for lost tracking, black images or missing depth: see TrackResult::state.
+  TrackResult track(const cv::Mat& rgb, const cv::Mat& depth, double timestamp);
+  /// Same for a frame read by RgbdDataset (its index and timestamp are kept).
+  TrackResult track(const RgbdFrame& frame);
+
+  /// Stage 1 (thread-safe, const): validates the frame and extracts features.
+  [[nodiscard]] PreparedFrame extract(FrameInput frame) const;
+  /// Stage 2: runs the dynamic-object source (in frame order).
+  void detect_dynamic(PreparedFrame& frame);
+  /// Stage 3: runs the dynamic filter (in frame order, after detect_dynamic).
+  void filter_dynamic(PreparedFrame& frame);
+  /// Stage 4: tracks a prepared frame (in frame order).
+  /// @throws ds3d::InvalidArgument when the timestamp is earlier than the previous frame's.
+  TrackResult track_prepared(PreparedFrame frame);
+
+  /// Waits for the mapping thread and applies any pending local BA, then (if
+  /// config.final_global_ba) a global BA over all keyframes, then (if config.refine_frame_poses)
+  /// re-optimises each tracked non-keyframe pose against the final map. Call after the last frame;
+  /// trajectory() reflects it. @note O(keyframes · points) for the global BA (about a second for
+  /// 400 frames) plus one pose-only optimisation per frame (a few ms each).
+  void finish();
+
+  /// One pose per tracked-or-not input frame, in input order. Each frame's pose is stored relative
+  /// to its reference keyframe and re-expressed with that keyframe's latest (optimised) pose, as
+  /// ORB-SLAM2 does when saving trajectories.
+  [[nodiscard]] std::vector<FramePose> trajectory() const;
+  /// One pose per live keyframe (camera → world), in creation order; culled keyframes are left
+  /// out (their frames keep a pose in trajectory()).
+  [[nodiscard]] std::vector<FramePose> keyframe_trajectory() const;
+  /// Positions of all good map points [m, world frame], one row each.
+  [[nodiscard]] Points3f map_points() const;
+  /// Writes map_points() as an ASCII PLY file. @throws ds3d::IoError when it cannot be written.
+  void write_map_ply(const std::filesystem::path& path) const;
+
+  /// The configuration as validated by the constructor.
+  [[nodiscard]] const FrontendConfig& config() const noexcept;
+  /// Keyframes in the map so far (culled ones excluded).
+  [[nodiscard]] std::size_t num_keyframes() const noexcept;
+  /// Keyframes removed by keyframe culling so far, in removal order (see
+  /// FrontendConfig::cull_keyframes).
+  [[nodiscard]] const std::vector<CulledKeyframe>& culled_keyframes() const noexcept;
+  /// Local BAs run so far, and their total thread CPU time [ms] (measured in the mapping thread).
+  [[nodiscard]] std::size_t num_local_ba() const noexcept;
+  /// Total thread CPU time of the local BAs so far [ms] (see num_local_ba()).
+  [[nodiscard]] double local_ba_ms() const noexcept;
+  /// Thread CPU time of the pose and point refinement in finish() [ms] (0 before finish() or
+  /// when config.refine_frame_poses is off).
+  [[nodiscard]] double refine_ms() const noexcept;
+  /// The dynamic-object source in use (NoDynamicObjects when none was given).
+  [[nodiscard]] const DynamicObjectSource& dynamic_source() const noexcept;
+  /// The dynamic-feature masker in use (NoDynamicMasker when none was given).
+  [[nodiscard]] const DynamicFeatureMasker& dynamic_masker() const noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Drops the `tracked` flags: the poses as a ds3d::Trajectory (for write_tum_trajectory and
+/// evaluate_ate).
+[[nodiscard]] Trajectory to_trajectory(const std::vector<FramePose>& poses);
+
+/// Options of run_pipeline.
+struct PipelineOptions {
+  bool threaded = true;    ///< stages in their own threads (false: all on the caller's)
+  int queue_capacity = 2;  ///< frames buffered between consecutive stages, >= 1
+  void validate() const;   ///< throws ds3d::InvalidArgument naming the bad field
+};
+
+/// Runs the four stages over a sequence: extraction and dynamic-object detection in parallel
+/// threads, then the dynamic filter, then tracking, connected by bounded queues so that frame
+/// t+1 is extracted while frame t is tracked (3DS-SLAM runs detection beside ORB extraction).
+/// @param slam   the front-end (its dynamic stages are used)
+/// @param next   returns the next frame, or std::nullopt at the end; called from one thread
+/// @param on_result called on the calling thread for every frame, in order (may be empty)
+/// @param options threaded or not, queue capacity between stages
+/// @return the results of all frames in order
+/// @throws whatever a stage throws (rethrown on the caller after the threads stop).
+/// @note Results are identical to calling track() on each frame (stages are pure or run in
+///       frame order); finish() is called at the end.
+std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
+                                      const std::function<std::optional<FrameInput>()>& next,
+                                      const std::function<void(const TrackResult&)>& on_result = {},
+                                      const PipelineOptions& options = {});
+
+/// run_pipeline over the first `max_frames` frames of a dataset (images are read on the
+/// pipeline's reader thread).
+/// @param slam       the front-end (its dynamic stages are used)
+/// @param dataset    an opened TUM/Bonn-layout dataset
+/// @param max_frames 0 = all frames
+/// @param on_result  called on the calling thread for every frame, in order (may be empty)
+/// @param options    threaded or not, queue capacity between stages
+/// @throws ds3d::IoError for unreadable images; what run_pipeline throws.
+std::vector<TrackResult> run_dataset(SlamFrontend& slam, const RgbdDataset& dataset,
+                                     std::size_t max_frames = 0,
+                                     const std::function<void(const TrackResult&)>& on_result = {},
+                                     const PipelineOptions& options = {});
+
+}  // namespace ds3d::slam

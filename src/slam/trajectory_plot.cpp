@@ -1,0 +1,194 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+#include "ds3d/slam/trajectory_plot.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ds3d/detail/tum_text.hpp"
+#include "ds3d/errors.hpp"
+
+namespace ds3d {
+
+namespace {
+
+// Perceptually ordered blue -> green -> yellow -> red ramp for v in [0, 1] (BGR).
+cv::Scalar ramp(double v) {
+  v = std::clamp(v, 0.0, 1.0);
+  static const double kStops[5][3] = {{0.19, 0.07, 0.23},
+                                      {0.13, 0.47, 0.85},
+                                      {0.25, 0.80, 0.35},
+                                      {0.98, 0.80, 0.15},
+                                      {0.84, 0.15, 0.12}};  // RGB
+  const double x = v * 4;
+  const int i = std::min(3, static_cast<int>(x));
+  const double f = x - i;
+  const auto c = [&](int k) { return 255 * ((1 - f) * kStops[i][k] + f * kStops[i + 1][k]); };
+  return {c(2), c(1), c(0)};
+}
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), f, v);
+  return buf;
+}
+
+void text(cv::Mat& img, const std::string& s, cv::Point p, double scale = 0.5,
+          const cv::Scalar& c = {40, 40, 40}) {
+  cv::putText(img, s, p, cv::FONT_HERSHEY_SIMPLEX, scale, c, 1, cv::LINE_AA);
+}
+
+// "Nice" tick step for a range.
+double tick_step(double range, int target) {
+  const double raw = range / target;
+  const double p = std::pow(10.0, std::floor(std::log10(raw)));
+  for (const double m : {1.0, 2.0, 5.0, 10.0}) {
+    if (m * p >= raw) return m * p;
+  }
+  return 10 * p;
+}
+
+}  // namespace
+
+void AtePlotOptions::validate() const {
+  DS3D_CHECK(width >= 400 && width <= 8000,
+             "ds3d::render_ate_plot: width must be in [400, 8000] (got ", width, ")");
+  DS3D_CHECK(height >= 300 && height <= 8000,
+             "ds3d::render_ate_plot: height must be in [300, 8000] (got ", height, ")");
+}
+
+cv::Mat render_ate_plot(const Trajectory& gt, const AteResult& r, const AtePlotOptions& o) {
+  o.validate();
+  DS3D_CHECK(!r.matches.empty(), "ds3d::render_ate_plot: the ATE result has no matches");
+  cv::Mat img(o.height, o.width, CV_8UC3, cv::Scalar(255, 255, 255));
+  const int header = 58;
+  text(img, o.title.empty() ? std::string("ATE") : o.title, {14, 22}, 0.6);
+  text(img,
+       "pairs " + std::to_string(r.compared_pose_pairs) + "   rmse " + fmt("%.4f", r.rmse) +
+           " m   mean " + fmt("%.4f", r.mean) + "   median " + fmt("%.4f", r.median) + "   std " +
+           fmt("%.4f", r.std) + "   min " + fmt("%.4f", r.min) + "   max " + fmt("%.4f", r.max) +
+           " m" + (r.scale_factor != 1.0 ? "   scale " + fmt("%.4f", r.scale_factor) : ""),
+       {14, 46}, 0.5);
+
+  // ---- top view: principal plane of the GT positions
+  std::vector<Eigen::Vector3d> gpts;
+  for (const auto& p : gt) {
+    if (p.T_world_cam.translation().allFinite()) gpts.push_back(p.T_world_cam.translation());
+  }
+  for (const auto& m : r.matches) gpts.push_back(m.p_gt);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : gpts) mean += p;
+  mean /= static_cast<double>(gpts.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : gpts) cov += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  Eigen::Vector3d ax = es.eigenvectors().col(2);
+  Eigen::Vector3d ay = es.eigenvectors().col(1);
+  const auto to2 = [&](const Eigen::Vector3d& p) {
+    return Eigen::Vector2d((p - mean).dot(ax), (p - mean).dot(ay));
+  };
+  Eigen::Vector2d lo(1e300, 1e300);
+  Eigen::Vector2d hi(-1e300, -1e300);
+  for (const auto& p : gpts) {
+    lo = lo.cwiseMin(to2(p));
+    hi = hi.cwiseMax(to2(p));
+  }
+  for (const auto& m : r.matches) {
+    lo = lo.cwiseMin(to2(m.p_est));
+    hi = hi.cwiseMax(to2(m.p_est));
+  }
+  const int panel_w = std::min(o.height - header - 20, o.width / 2 - 20);
+  const cv::Rect view(20, header + 10, panel_w, o.height - header - 30);
+  const double span = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1e-6});
+  const double scale = 0.9 * std::min(view.width, view.height) / span;
+  const Eigen::Vector2d mid = 0.5 * (lo + hi);
+  const auto px = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector2d q = to2(p) - mid;
+    return cv::Point(static_cast<int>(std::lround(view.x + view.width / 2.0 + scale * q.x())),
+                     static_cast<int>(std::lround(view.y + view.height / 2.0 - scale * q.y())));
+  };
+  cv::rectangle(img, view, {200, 200, 200});
+  text(img, "top view (principal plane of ground truth)", {view.x + 6, view.y + 18}, 0.45);
+  // scale bar
+  const double bar = tick_step(span, 4);
+  const int bar_px = static_cast<int>(bar * scale);
+  const cv::Point b0(view.x + 10, view.y + view.height - 14);
+  cv::line(img, b0, b0 + cv::Point(bar_px, 0), {40, 40, 40}, 2);
+  text(img, fmt("%g m", bar), b0 + cv::Point(bar_px + 6, 5), 0.45);
+  std::vector<cv::Point> gline;
+  for (const auto& p : gt) {
+    if (p.T_world_cam.translation().allFinite()) gline.push_back(px(p.T_world_cam.translation()));
+  }
+  cv::polylines(img, gline, false, {150, 150, 150}, 2, cv::LINE_AA);
+  const double emax = std::max(r.max, 1e-12);
+  for (std::size_t k = 0; k < r.matches.size(); ++k) {
+    const auto& m = r.matches[k];
+    const cv::Scalar c = ramp(m.error / emax);
+    if (k + 1 < r.matches.size()) {
+      cv::line(img, px(m.p_est), px(r.matches[k + 1].p_est), c, 2, cv::LINE_AA);
+    }
+  }
+  cv::circle(img, px(r.matches.front().p_gt), 5, {0, 140, 0}, cv::FILLED, cv::LINE_AA);
+  text(img, "start", px(r.matches.front().p_gt) + cv::Point(7, -7), 0.45, {0, 120, 0});
+  // legend
+  const int lx = view.x + view.width - 190;
+  cv::line(img, {lx, view.y + 34}, {lx + 30, view.y + 34}, {150, 150, 150}, 2);
+  text(img, "ground truth", {lx + 36, view.y + 39}, 0.45);
+  for (int i = 0; i < 30; ++i) {
+    cv::line(img, {lx + i, view.y + 54}, {lx + i + 1, view.y + 54}, ramp(i / 29.0), 3);
+  }
+  text(img, "estimate (aligned)", {lx + 36, view.y + 59}, 0.45);
+
+  // ---- error over time
+  const cv::Rect plot(view.x + view.width + 70, header + 10, o.width - view.width - 110,
+                      o.height - header - 60);
+  cv::rectangle(img, plot, {200, 200, 200});
+  const double t0 = r.matches.front().t_gt;
+  const double t1 = std::max(r.matches.back().t_gt, t0 + 1e-6);
+  const double ytop = emax * 1.08;
+  const auto pt = [&](double t, double e) {
+    return cv::Point(static_cast<int>(std::lround(plot.x + (t - t0) / (t1 - t0) * plot.width)),
+                     static_cast<int>(std::lround(plot.y + plot.height - e / ytop * plot.height)));
+  };
+  const double ys = tick_step(ytop, 5);
+  for (double y = 0; y <= ytop + 1e-12; y += ys) {
+    cv::line(img, pt(t0, y), pt(t1, y), {235, 235, 235}, 1);
+    text(img, fmt("%.3g", y), pt(t0, y) + cv::Point(-58, 5), 0.42);
+  }
+  const double xs = tick_step(t1 - t0, 6);
+  for (double x = 0; x <= t1 - t0 + 1e-9; x += xs) {
+    cv::line(img, pt(t0 + x, 0), pt(t0 + x, 0) + cv::Point(0, 5), {40, 40, 40}, 1);
+    text(img, fmt("%g", x), pt(t0 + x, 0) + cv::Point(-8, 22), 0.42);
+  }
+  text(img, "time [s]", {plot.x + plot.width / 2 - 30, plot.y + plot.height + 44}, 0.45);
+  text(img, "translational error [m]", {plot.x + 6, plot.y + 18}, 0.45);
+  for (std::size_t k = 0; k + 1 < r.matches.size(); ++k) {
+    const auto& a = r.matches[k];
+    const auto& b = r.matches[k + 1];
+    cv::line(img, pt(a.t_gt, a.error), pt(b.t_gt, b.error), ramp(a.error / emax), 2, cv::LINE_AA);
+  }
+  cv::line(img, pt(t0, r.rmse), pt(t1, r.rmse), {60, 60, 200}, 1, cv::LINE_AA);
+  text(img, "rmse " + fmt("%.4f", r.rmse), pt(t1, r.rmse) + cv::Point(-110, -6), 0.45,
+       {60, 60, 200});
+  return img;
+}
+
+void write_ate_plot(const std::filesystem::path& path, const Trajectory& gt,
+                    const AteResult& result, const AtePlotOptions& options) {
+  const cv::Mat img = render_ate_plot(gt, result, options);
+  std::vector<std::uint8_t> buf;
+  DS3D_CHECK_AS(IoError, cv::imencode(".png", img, buf),
+                "ds3d::write_ate_plot: PNG encoding failed");
+  detail::write_file_atomically(
+      path, std::string_view(reinterpret_cast<const char*>(buf.data()), buf.size()),
+      "ds3d::write_ate_plot");
+}
+
+}  // namespace ds3d
