@@ -106,7 +106,7 @@ bench-compare:
 	cmake --build $(COMPARE_DIR) -j $(JOBS)
 	OMP_NUM_THREADS=1 $(COMPARE_DIR)/bin/compare_open3d_pcl $(COMPARE_ARGS)
 
-# ---- fuzzing (issue 5): libFuzzer targets tests/fuzz/*_fuzz.cpp, built with clang + ASan/UBSan
+# ---- fuzzing: libFuzzer targets tests/fuzz/*_fuzz.cpp, built with clang + ASan/UBSan
 # in build-fuzz/, each run for FUZZ_SECONDS (default 60) from a seed corpus of tests/data.
 FUZZ_DIR     ?= build-fuzz
 FUZZ_SECONDS ?= 60

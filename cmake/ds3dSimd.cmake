@@ -55,7 +55,7 @@ endif()
 message(STATUS "ds3d SIMD level: ${DS3D_SIMD_LEVEL} (${_ds3d_simd_why})")
 
 # GCC >= 12 reports false -Warray-bounds in Eigen's AVX packet paths for 3-vectors assigned into
-# run-time-sized blocks (dead 4-wide branches; GCC PR 106247, Eigen issue 2506), e.g. the comma
+# run-time-sized blocks (dead 4-wide branches; GCC PR 106247, Eigen report 2506), e.g. the comma
 # initialiser `v4 << v3, s`. Those are not our bugs: the AVX build turns this one warning off
 # (the `none` build keeps it, so real out-of-bounds accesses are still reported there).
 set(DS3D_SIMD_WARNING_FLAGS_AVX2 "")

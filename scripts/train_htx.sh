@@ -49,10 +49,10 @@ THR=$(${PY} -m ds3d.htx.evaluate threshold --model "${WORK}/runs/main/checkpoint
       ${PY} -c 'import json,sys; print(json.load(sys.stdin)["result"]["threshold"])')
 ${PY} -m ds3d.htx.train export --checkpoint "${WORK}/runs/main/checkpoint.pt" --threshold "${THR}" \
   --out models/htx_lite_fast.safetensors
-# 3b. the part head re-fitted on per-pixel human labels, the rest frozen (session 11; boxes unchanged)
+# 3b. the part head re-fitted on per-pixel human labels, the rest frozen (boxes unchanged)
 ${PY} -m ds3d.htx.finetune_part --model models/htx_lite_fast.safetensors --data "${WORK}/train" \
   --out models/htx_lite_fast.safetensors --threads "${THREADS}"
-# 3c. the same re-fit for 8 more epochs (session 16: the 6-epoch head had not converged)
+# 3c. the same re-fit for 8 more epochs (the 6-epoch head has not converged)
 ${PY} -m ds3d.htx.finetune_part --model models/htx_lite_fast.safetensors --data "${WORK}/train" \
   --out models/htx_lite_fast.safetensors --threads "${THREADS}" --epochs 8
 ${PY} -m ds3d.htx.evaluate synthetic --model models/htx_lite_fast.safetensors --data "${WORK}/test" \

@@ -5,7 +5,7 @@
 // 1.5 m). Arguments: {keypoints, box area in percent of the image, metric gates}: with gates 1
 // the box also carries a solid (an oriented 3-D box holding everything in its rectangle between
 // 1.2 and 3.2 m, so the same keypoints are clustered) and the frame a support plane 2 m below the
-// camera (no keypoint on it): the cost of the gates alone (session 7).
+// camera (no keypoint on it): the cost of the gates alone.
 #include <benchmark/benchmark.h>
 
 #include <cmath>

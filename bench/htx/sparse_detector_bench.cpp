@@ -99,10 +99,9 @@ BENCHMARK(BM_HtxFrame)
     ->Unit(benchmark::kMillisecond)
     ->MinTime(1.0);
 
-// The part-head averages (sessions 15 and 16), fast profile, segment on: Arg 0 the defaults
-// (segment_frames 10 since session 16), 1 segment_frames 0 (the defaults before), 2 draws 2,
-// 3 segment_smoothing 1. Timestamps advance 1/30 s per iteration so the smoothing window stays
-// full. Counter detect_ms as BM_HtxFrame.
+// The part-head averages, fast profile, segment on: Arg 0 the defaults (segment_frames 10),
+// 1 segment_frames 0 (no frame average), 2 draws 2, 3 segment_smoothing 1. Timestamps advance
+// 1/30 s per iteration so the smoothing window stays full. Counter detect_ms as BM_HtxFrame.
 void BM_HtxFrameAveraged(benchmark::State& state) {
   ds3d::synth::SynthOptions so;
   const std::vector<ds3d::slam::FrameInput> frames = htx_frames(so);

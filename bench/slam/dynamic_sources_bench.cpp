@@ -11,10 +11,10 @@
 // part head would report them: the cost of the segmentation check on top of the filter. With
 // argument 1 the other pixels with depth on an 8-pixel grid (≈ 4,000 points, about the
 // network's ≈ 3,000) come as DynamicObjects::background_points: the nearest-neighbour label
-// transfer of session 11 (a second KD-tree and query per checked keypoint). With argument 2 the
-// same objects with DynamicObjects::segment_outside_boxes (session 17): every keypoint outside
-// the boxes is checked against the segmentation too (two KD-tree queries each, and a depth
-// window for those without depth).
+// transfer (a second KD-tree and query per checked keypoint). With argument 2 the same objects
+// with DynamicObjects::segment_outside_boxes: every keypoint outside the boxes is checked
+// against the segmentation too (two KD-tree queries each, and a depth window for those without
+// depth).
 #include <benchmark/benchmark.h>
 
 #include <algorithm>

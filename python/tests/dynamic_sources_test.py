@@ -330,8 +330,8 @@ def test_segmentation_fields_and_the_masker_check():
     assert not (in_boxes & ~radius_only).any()
     with pytest.raises(ValueError, match="foreground_radius"):
         ds3d.DynamicObjects(foreground_radius=0.0)
-    # By default the segmentation covers the frame, with the floor preprocess removed (session
-    # 17): it adds keypoints outside the boxes, never takes any away.
+    # By default the segmentation covers the frame, with the floor preprocess removed: it adds
+    # keypoints outside the boxes, never takes any away.
     assert o.segment_outside_boxes and o.support_plane is None
     assert o.segment_plane is not None and o.segment_plane[1] < -0.8
     assert np.linalg.norm(o.segment_plane[:3]) == pytest.approx(1.0, abs=1e-5)

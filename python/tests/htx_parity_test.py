@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
 """C++ ds3d.SparseDetector vs the PyTorch reference ds3d.htx on random-initialised weights of
-both profiles: identical sampling indices, outputs within 1e-4 (issue 8 parity criterion)."""
+both profiles: identical sampling indices, outputs within 1e-4 (parity criterion)."""
 import numpy as np
 import pytest
 

@@ -75,7 +75,7 @@ constexpr const char* kUsage =
     "  (HtxSourceParams::report_floor; off by default, see docs/dynamic.md: better precision on\n"
     "  synthetic scenes, fewer person keypoints removed on recorded ones). --no-segment: do\n"
     "  not confirm the detector's boxes with its part head's foreground points\n"
-    "  (HtxSourceParams::segment, on by default since session 10). --htx-draws N: run the\n"
+    "  (HtxSourceParams::segment, on by default). --htx-draws N: run the\n"
     "  network on N draws of its input per frame, average the part head over them and add the\n"
     "  boxes the later draws find (default 1; each draw costs one network pass).\n"
     "  --segment-frames K: average each point's part-head logit with its nearest point's (within\n"

@@ -345,10 +345,10 @@ Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor> slab_points(const ds3d:
 
 // A person (slab at 1.5 m, u 250-329) behind a desk (1.0 m, u 200-379, v from 300) in front of a
 // wall at 3 m, all in one segmented 3-D box. The box filter takes the nearest cluster, the desk:
-// the segmentation vetoes the desk and makes the gated person keypoints dynamic instead (session
-// 12). A depth hole on the person's left edge (u 249-253): a keypoint in it takes the depth of the
-// side whose colour it has, so the red person pixel at u 250 is dynamic although most of the
-// window's depths are the wall's.
+// the segmentation vetoes the desk and makes the gated person keypoints dynamic instead. A depth
+// hole on the person's left edge (u 249-253): a keypoint in it takes the depth of the side whose
+// colour it has, so the red person pixel at u 250 is dynamic although most of the window's depths
+// are the wall's.
 TEST(HdbscanMasker, SegmentationDecidesInsideGatedBoxesAndColoursHoles) {
   const ds3d::PinholeCamera cam;
   cv::Mat depth(480, 640, CV_16UC1, cv::Scalar(15000));      // wall, 3 m
@@ -430,7 +430,7 @@ TEST(HdbscanMasker, SegmentationDecidesInsideGatedBoxesAndColoursHoles) {
 // seen from row 324 down, the wall at 5 m above it), with a 3-D box over the upper body only
 // (too small, as the detector's boxes often are on seated people). The part head's foreground
 // covers the whole body; the source removed the floor before segmenting, so it has no
-// background points there (session 17).
+// background points there.
 TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFloor) {
   const ds3d::PinholeCamera cam;
   constexpr double kFloorY = 0.8;
@@ -542,7 +542,7 @@ TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFl
 }
 
 // keep_anchored_foreground: a chain of foreground points leading out of a box stays foreground,
-// an isolated patch elsewhere moves to the background (session 17).
+// an isolated patch elsewhere moves to the background.
 TEST(KeepAnchoredForeground, KeepsWhatIsConnectedToABoxAndMovesTheRest) {
   DynamicObjects o;
   Eigen::Matrix<float, 8, 3> c;  // x -0.3..0.3, y -0.5..0.5, z 1.8..2.2
@@ -627,7 +627,7 @@ TEST(RecordedData, TumWalkingXyzMasks) {
     depths.push_back(e.path());
   std::sort(depths.begin(), depths.end());
   // [0]: the boxes alone; [1]: with this frame's floor (preprocess's ground plane, as HtxSource
-  // reports it) as the support plane (session 7).
+  // reports it) as the support plane.
   int on_person[2] = {0, 0};
   int on_person_dyn[2] = {0, 0};
   int rest[2] = {0, 0};
@@ -723,7 +723,7 @@ TEST(RecordedData, TumWalkingXyzMasks) {
     // the shallowest depth group was removed; docs/dynamic.md); with the floor plane 0.67 / 0.90
     // (the foreground no longer reaches over the floor, so fewer keypoints without depth in its
     // rectangle are removed, on the dilated mask's silhouettes as well as off it). These bounds
-    // guard against regressions, they are not the targets.
+    // guard against regressions; they are not accuracy targets.
     EXPECT_GT(on_person[variant], 50);
     EXPECT_GE(recall, variant == 0 ? 0.7 : 0.6);
     EXPECT_GE(kept, 0.85);

@@ -9,24 +9,24 @@
 // the synthetic scenarios then print their figures without checking them (docs/dynamic.md: the
 // HTx source on the synthetic scenarios). The other tests always run the geometric source.
 // DS3D_GEOM_TEST_GATE_ALPHA, _CHI2, _HOLD and _NO_PIXELS=1 set MotionGateParams' alpha,
-// keypoint_chi2, hold_frames and pixel_evidence = false (`htx&&geometric`, session 9);
+// keypoint_chi2, hold_frames and pixel_evidence = false (`htx&&geometric`);
 // DS3D_GEOM_TEST_FROM=N counts the synthetic scenes from frame N on. Measurement
-// knobs for that mode (docs/dynamic.md, session 7): DS3D_GEOM_TEST_HTX_UNCERTAINTY=M sets
+// knobs for that mode (docs/dynamic.md): DS3D_GEOM_TEST_HTX_UNCERTAINTY=M sets
 // HtxSourceParams::box_uncertainty (metres, or inf), DS3D_GEOM_TEST_FLOOR=1 sets
 // HtxSourceParams::report_floor (off by default), DS3D_GEOM_TEST_NO_PLANE=1 drops any support
 // plane of the source before the masker, DS3D_GEOM_TEST_NO_SEGMENT=1 sets
-// HtxSourceParams::segment = false (no part-head confirmation, as before session 10),
+// HtxSourceParams::segment = false (no part-head confirmation),
 // DS3D_GEOM_TEST_FG_RADIUS=M sets HtxSourceParams::foreground_radius (and the oracle's radius),
-// DS3D_GEOM_TEST_WEIGHTS=PATH the HTx weights file. Session 11: DS3D_GEOM_TEST_NO_BACKGROUND=1
-// drops DynamicObjects::background_points (the radius rule alone, as in session 10), and
+// DS3D_GEOM_TEST_WEIGHTS=PATH the HTx weights file, DS3D_GEOM_TEST_NO_BACKGROUND=1
+// drops DynamicObjects::background_points (the radius rule alone), and
 // DS3D_GEOM_TEST_ORACLE_FG=1 replaces the segmentation by the generator's mask (every 4th pixel
 // with depth, on the mask = foreground, else background), the ceiling of the segmented masker.
-// Session 14: DS3D_GEOM_TEST_HTX_HOLD=K and _HTX_HOLD_POINTS=N set HtxSourceParams::hold_frames
+// DS3D_GEOM_TEST_HTX_HOLD=K and _HTX_HOLD_POINTS=N set HtxSourceParams::hold_frames
 // and hold_min_points; DS3D_GEOM_TEST_FP_STATS=1 prints one line per false positive (distance to
 // the nearest person pixel, depth or not, octave) and per miss (inside an image box or not,
 // depth or not, dynamic after the box filter, gated by a box's solid).
-// Session 15: DS3D_GEOM_TEST_HTX_DRAWS=N, _HTX_SEGMENT_FRAMES=K and _HTX_FG_PROB=P set
-// HtxSourceParams::draws, segment_frames and foreground_min_prob. Session 16:
+// DS3D_GEOM_TEST_HTX_DRAWS=N, _HTX_SEGMENT_FRAMES=K and _HTX_FG_PROB=P set
+// HtxSourceParams::draws, segment_frames and foreground_min_prob;
 // DS3D_GEOM_TEST_HTX_SMOOTHING=W sets HtxSourceParams::segment_smoothing, and
 // DS3D_GEOM_TEST_ORACLE_RELABEL=1 relabels the source's own segmented points by the generator's
 // mask at their pixels (the ceiling of a perfect part head at the network's point resolution).
@@ -432,8 +432,8 @@ TEST(GeometricMotion, SyntheticScenariosAgainstMasks) {
               << ", on people " << c.mask_on << gate_line(c) << "\n";
     EXPECT_GT(c.tp + c.fn, 100) << ds3d::synth::scenario_name(sc);
     if (other_spec != nullptr) continue;  // another source: measured, not checked
-    // Walkers are found within their first two seconds (0.44-0.80 with session 5's defaults;
-    // 0.14-0.56 when the warp support test rejected their leading-edge bands).
+    // Walkers are found within their first two seconds (recall 0.44-0.80 when this bound was
+    // set; 0.14-0.56 when the warp support test rejected their leading-edge bands).
     if (sc != Scenario::kSittingStatic && sc != Scenario::kSittingXyz) {
       EXPECT_GT(c.recall(), 0.35) << ds3d::synth::scenario_name(sc);
       EXPECT_GT(c.precision(), 0.9) << ds3d::synth::scenario_name(sc);
@@ -446,9 +446,9 @@ TEST(GeometricMotion, SyntheticScenariosAgainstMasks) {
   }
 }
 
-// The issue's bar for the default semantic source (`--dynamic htx`, the shipped weights, every
+// The bar for the default semantic source (`--dynamic htx`, the shipped weights, every
 // default): dynamic-keypoint precision and recall >= 0.9 on every synthetic scenario with people,
-// walking and seated (60 frames, seed 7), and a clean static room. When written (session 17):
+// walking and seated (60 frames, seed 7), and a clean static room. Measured:
 // walkers 0.989-0.992 / 0.980-0.991, sitting_static 0.930 / 0.965, sitting_xyz 0.918 / 0.960,
 // static_room 0.0042 (docs/dynamic.md).
 TEST(HtxSource, SyntheticScenariosMeetPrecisionAndRecall) {
@@ -507,7 +507,7 @@ Counts run_recorded(const std::filesystem::path& dir, std::size_t first, std::si
 }
 
 // Recorded data: people walking are found (Bonn crowd), a static desk seen by a fast handheld
-// camera is left alone (TUM fr1_xyz, the case issue 7 says must not be flagged).
+// camera is left alone (TUM fr1_xyz, a static scene that must not be flagged).
 TEST(RecordedData, GeometricSourceFindsPeopleAndLeavesStaticScenes) {
   const auto root = ds3d::test::shared_data_dir();
   if (root.empty() || !std::filesystem::exists(root / "bonn_crowd_first300") ||

@@ -228,7 +228,7 @@ TEST(HtxSource, KnownBoxReachesTheFilterAndDropsTheKeypointsInside) {
   EXPECT_EQ(points_seen, 4096U);
   ASSERT_EQ(obj.boxes_3d.size(), 1U);
   ASSERT_EQ(src.last_boxes().size(), 1U);
-  // Session 7: each box carries the detector's metric uncertainty, and the frame its floor
+  // Each box carries the detector's metric uncertainty, and the frame its floor
   // (camera frame, unit normal pointing up = camera −y side, the camera above it).
   ASSERT_EQ(obj.boxes_3d_margin.size(), 1U);
   EXPECT_FLOAT_EQ(obj.boxes_3d_margin[0], src.params().box_uncertainty);
@@ -727,7 +727,7 @@ std::vector<int> kept_frames(bool evidence, const std::function<float(int)>& sla
   return kept;
 }
 
-// Evidence gate (session 9): a person box with no motion evidence inside (here a static slab,
+// Evidence gate: a person box with no motion evidence inside (here a static slab,
 // furniture to the detector) is never kept, however long it is detected.
 TEST(MotionGatedSource, EvidenceGateDropsABoxWithoutMotion) {
   const std::vector<int> kept = kept_frames(
@@ -934,7 +934,7 @@ TEST(HtxSource, HoldCarriesMissedBoxesOnPeople) {
   EXPECT_GT(static_cast<double>(covered_held), 1.05 * static_cast<double>(covered_plain));
 }
 
-// draws and segment_frames (session 15) on seated people, the shipped model, 16 frames: the
+// draws and segment_frames on seated people, the shipped model, 16 frames: the
 // first draw's boxes come first and equal a one-draw source's; smoothing leaves the boxes alone;
 // both put fewer foreground points off people without losing many of those on people; a
 // timestamp going back starts the smoothing afresh.
@@ -1006,8 +1006,8 @@ TEST(HtxSource, DrawsAndFrameSmoothingSharpenTheSeatedSegmentation) {
             << all[0] << "), smoothed " << share(1) << " (" << on[1] << "/" << all[1]
             << "), two draws " << share(2) << " (" << on[2] << "/" << all[2] << "); boxes added by "
             << "the second draw " << added_boxes << "\n";
-  // Foreground points off people (chair, seat): 188 with one draw, 142 smoothed, 169 with two
-  // draws when written (session 15); 134, 43 and 85 with session 16's re-fitted part head.
+  // Foreground points off people (chair, seat) with the shipped model's re-fitted part head:
+  // 134 with one draw, 43 smoothed, 85 with two draws (188, 142 and 169 before the re-fit).
   const auto off = [&](std::size_t s) { return static_cast<double>(all[s] - on[s]); };
   EXPECT_LE(off(1), 0.9 * off(0));
   EXPECT_LT(off(2), off(0));
@@ -1061,7 +1061,7 @@ TEST(HtxSource, SpatialSmoothingRelabelsIsolatedSeatPoints) {
   std::cout << "foreground points on people: plain " << on[0] << "/" << all[0] << ", smoothed "
             << on[1] << "/" << all[1] << "\n";
   // More foreground points on people and not more off them (chair, seat): a point labelled
-  // against its surface neighbours is relabelled (when written: 4846 -> 4918 on people,
+  // against its surface neighbours is relabelled (measured: 4846 -> 4918 on people,
   // 115 -> 95 off them).
   EXPECT_LE(all[1] - on[1], all[0] - on[0]);
   EXPECT_GT(static_cast<double>(on[1]), 1.01 * static_cast<double>(on[0]));

@@ -48,7 +48,7 @@ struct VoxelGridParams {
   /// starts its threads anew, which costs more than it saves on small clouds (2-vCPU AMD EPYC,
   /// BM_VoxelGridSmall, 5 cm leaf: 10,000 points 0.10 ms on one thread against 0.30 ms on two,
   /// 100,000 points 1.07 against 1.20 ms; BM_VoxelGrid, the 300,000-point frame at 1 cm: 3.36
-  /// against 2.54 ms; docs/benchmarks.md, session 14). 0 = always num_threads.
+  /// against 2.54 ms; docs/benchmarks.md). 0 = always num_threads.
   std::size_t parallel_min_points = 200000;
   /// Throws ds3d::InvalidArgument naming the bad field and value.
   void validate() const;

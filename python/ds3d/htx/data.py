@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
-"""Training and test data for HTx-lite from the synthetic generator (issue 9; docs/htx_training.md).
+"""Training and test data for HTx-lite from the synthetic generator (docs/htx_training.md).
 
 Each frame is rendered by ``ds3d.synth`` (TUM-like camera motions, 0-4 humanoids, Kinect-like depth
 noise), preprocessed by exactly the call used at inference (``ds3d.preprocess`` with its defaults:

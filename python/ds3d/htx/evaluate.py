@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
-"""Evaluation of a trained HTx-lite model (issue 9; docs/htx_training.md).
+"""Evaluation of a trained HTx-lite model (docs/htx_training.md).
 
     python3 -m ds3d.htx.evaluate synthetic --model RUN/checkpoint.pt --data DIR/test [--json out.json]
     python3 -m ds3d.htx.evaluate tum --model models/htx_lite_fast.safetensors --data ../shared/data/tum_fr3_walking_xyz_3frames

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
-"""Re-fits the HTx part head on per-pixel human labels, everything else frozen (session 11).
+"""Re-fits the HTx part head on per-pixel human labels, everything else frozen.
 
 The main training (ds3d.htx.train) labels a point foreground when it lies in a ground-truth box
 and ignores the box's other points (chair, wall behind): the head was never told that the seat

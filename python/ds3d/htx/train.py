@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
-"""CPU trainer of HTx-lite on the synthetic humanoid data of ds3d.htx.data (issue 9).
+"""CPU trainer of HTx-lite on the synthetic humanoid data of ds3d.htx.data.
 
     python3 -m ds3d.htx.train --data DIR/train --out DIR/run --steps 6000 --threads 1 \\
         --max-minutes 70

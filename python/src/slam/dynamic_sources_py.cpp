@@ -432,7 +432,7 @@ void bind_dynamic_sources(py::module_& m) {
       "[m], logits (N,) foreground logits, kernel_width [m] > 0 (Gaussian kernel, neighbours\n"
       "within 2 widths), weight >= 0 (0 = unchanged), iterations >= 1. Returns the (N,) float32\n"
       "posterior logits; rows with a non-finite point or logit keep theirs. ValueError on bad\n"
-      "arguments (docs/dynamic.md, session 16).");
+      "arguments (docs/dynamic.md).");
 
   m.def(
       "keep_anchored_foreground",
@@ -445,7 +445,7 @@ void bind_dynamic_sources(py::module_& m) {
       "a box grown by margin [m] >= 0 or inf, or within foreground_radius of such a point, and\n"
       "so on); the other finite foreground points move to the background points. Returns\n"
       "(new DynamicObjects, number moved); `objects` is not changed. ValueError on a bad margin\n"
-      "or foreground_radius (HtxSource's segment_outside_boxes; docs/dynamic.md, session 17).");
+      "or foreground_radius (HtxSource's segment_outside_boxes; docs/dynamic.md).");
 
   m.def(
       "make_dynamic_source",
@@ -476,7 +476,7 @@ void bind_dynamic_sources(py::module_& m) {
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric'), 'A&B' (A's boxes only where B sees\n"
       "motion, e.g. 'htx&geometric') or 'A&&geometric' (A's boxes where the geometric source's\n"
-      "raw evidence inside them is significant, tracked; docs/dynamic.md, session 9);\n"
+      "raw evidence inside them is significant, tracked; docs/dynamic.md);\n"
       "weights = htx weights file ('' = the default model), "
       "detect_every\n"
       ">= 1, min_score in [0, 1] and box_uncertainty [m] (>= 0 or inf), report_floor and segment\n"
@@ -485,11 +485,11 @@ void bind_dynamic_sources(py::module_& m) {
       "0 under 'A&&geometric'), draws (>= 1, default 1: network passes on different input\n"
       "draws per frame, part head averaged, later draws' new boxes added) and segment_frames\n"
       "(>= 0, default 10, 0 = off: average each point's part-head logit with its nearest\n"
-      "point's in the last frames; docs/dynamic.md, sessions 15 and 16) and segment_smoothing "
+      "point's in the last frames; docs/dynamic.md) and segment_smoothing "
       "(finite, >= 0, default\n"
       "0 = off: weight of the mean-field smoothing of the part head's labels over neighbouring\n"
-      "points; session 16) and segment_outside_boxes (default True: the part head also marks\n"
-      "the keypoints it sees on people outside the boxes; session 17) for htx. "
+      "points) and segment_outside_boxes (default True: the part head also marks\n"
+      "the keypoints it sees on people outside the boxes) for htx. "
       "ValueError for\n"
       "an unknown name or bad options,\n"
       "RuntimeError for an unreadable file.");

@@ -1321,7 +1321,8 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
     MotionGateParams gate = options.gate;
     gate.evidence = true;
     // The evidence gate holds confirmed boxes on its own tracks; carried semantic boxes would
-    // only be tested again without a new detection (session 14: fr1_xyz 0.0115 -> 0.0123 m).
+    // only be tested again without a new detection (fr1_xyz ATE 0.0115 m without them, 0.0123 m
+    // with them).
     DynamicSourceOptions semantic = options;
     semantic.htx.hold_frames = 0;
     return std::make_shared<MotionGatedSource>(make_dynamic_source(a, semantic),

@@ -50,10 +50,9 @@ void htx_demo(const ds3d::demo::Context& ctx) {
   const auto out = det.run(pts, {.num_threads = 1, .part_logits = true});
   const double ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  std::cout
-      << "HTx-lite '" << det.config().profile << "': " << det.config().num_centres << " tokens, "
-      << out.proposals.size() << " queries -> " << out.boxes.size() << " boxes after NMS in " << ms
-      << " ms (1 thread, random weights: the boxes are meaningless until issue 9 trains them)\n";
+  std::cout << "HTx-lite '" << det.config().profile << "': " << det.config().num_centres
+            << " tokens, " << out.proposals.size() << " queries -> " << out.boxes.size()
+            << " boxes after NMS in " << ms << " ms (1 thread, random weights)\n";
   ds3d::Box3 person;
   person.centre = {0.45F, 1.75F, 0.85F};
   person.size = {0.5F, 0.5F, 1.7F};

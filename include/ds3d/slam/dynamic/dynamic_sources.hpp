@@ -90,7 +90,7 @@ class FileSource final : public DynamicObjectSource {
 /// the depth's size); it is dynamic exactly when that point passes the same test (no valid
 /// depth there: static). So the segmentation decides inside the gated boxes: furniture in a
 /// person's box, false boxes without foreground, floor at the feet and (with background
-/// points) the seat under a seated person's thighs stay static (docs/dynamic.md, session 12).
+/// points) the seat under a seated person's thighs stay static (docs/dynamic.md).
 class HdbscanMasker final : public DynamicFeatureMasker {
  public:
   /// @throws ds3d::InvalidArgument on bad params.
@@ -185,99 +185,60 @@ struct HtxSourceParams {
   std::vector<std::string> classes{"person"};
   int detect_every = 1;  ///< run the detector on every k-th frame (k >= 1); see HtxSource
   int num_threads = 1;   ///< threads of preprocess and the detector's attention; 0 = all, >= 0
-  /// Metric uncertainty of the detector's boxes [m], reported as DynamicObjects::boxes_3d_margin:
-  /// the masker keeps only keypoints inside each oriented box grown by this much per side (plus
-  /// 3σ of their depth noise); +inf gates by the projected rectangle and depth range alone (the
-  /// behaviour before session 7). >= 0.
+  /// Metric uncertainty of the detector's boxes [m], >= 0, reported as
+  /// DynamicObjects::boxes_3d_margin: the masker keeps only keypoints inside each oriented box
+  /// grown by this much per side (plus 3σ of their depth noise); +inf gates by the projected
+  /// rectangle and depth range alone (docs/dynamic.md).
   float box_uncertainty = 0.15F;
-  /// Report the floor that preprocess found in the frame as DynamicObjects::support_plane (the
-  /// masker then keeps keypoints on it static; `ds3d-slam --floor`). Off by default: on the
-  /// synthetic scenes it raised precision from ≈ 0.5 to 0.91–0.95 on walking_xyz/static and
-  /// fr1's `htx` ATE improves, but on the recorded people (Bonn crowd ATE, the TUM fr3 person
-  /// masks) it removes fewer person keypoints (docs/dynamic.md, session 7). Since session 17 the
-  /// same floor always comes as DynamicObjects::segment_plane (with segment), which keeps it out
-  /// of the segmentation's decisions only; the synthetic figures are then the same either way.
+  /// Report the floor that preprocess found as DynamicObjects::support_plane, whose keypoints the
+  /// masker keeps static (`ds3d-slam --floor`). Off by default: it raises precision on the
+  /// synthetic scenes but removes fewer keypoints on recorded people (docs/dynamic.md). With
+  /// segment the same floor always comes as DynamicObjects::segment_plane, which keeps it out of
+  /// the segmentation's decisions only.
   bool report_floor = false;
-  /// Run the detector's Part-A2 part head on every input point and report the points it
-  /// segments as foreground (probability > foreground_min_prob) as
-  /// DynamicObjects::foreground_points and the other input points as background_points, with
-  /// every box flagged in boxes_3d_segmented: the masker then keeps a box's dynamic keypoint only
-  /// when its nearest segmented point is a foreground one within foreground_radius
-  /// (docs/dynamic.md, sessions 10 and 11).
-  /// Needs the SparseDetector constructor (a DetectFn gives no segmentation; ignored then).
+  /// Run the detector's Part-A2 part head on every input point and report its foreground
+  /// (probability > foreground_min_prob) and background points, every box flagged in
+  /// boxes_3d_segmented: the masker keeps a box's dynamic keypoint only when its nearest
+  /// segmented point is a foreground one within foreground_radius. On by default; needs the
+  /// SparseDetector constructor (ignored with a DetectFn). See docs/dynamic.md.
   bool segment = true;
   float foreground_min_prob = 0.5F;  ///< foreground decision on the part head's sigmoid, (0, 1)
   /// DynamicObjects::foreground_radius reported [m], > 0, finite. Default 2 voxel leaves of the
   /// default preprocess (0.1 m): a keypoint lies within about one leaf of its voxel's centroid,
   /// and the nearest foreground centroid may be the next voxel's.
   float foreground_radius = 0.2F;
-  /// Frames a box is carried after the detector reported it, >= 0 (0 = off; with detect_every
-  /// k > 1, detector runs: the frames between reuse the last result). Needs the
-  /// segmentation (segment, SparseDetector constructor). In each later frame a held box is
-  /// reported again, after the detected ones, unless a detected box continues it (its centre
-  /// lies within half the held box's largest horizontal size) or fewer than hold_min_points
-  /// foreground points of this frame lie in it (grown by box_uncertainty per side); it moves by
-  /// the shift of their centroid. A detected box with fewer such points is not held. Held boxes
-  /// are not merged with each other: a seated person's boxes of consecutive frames often each
-  /// cover a part of them, and the masker's segmentation check decides inside their union.
-  /// Covers detection misses of people the part head still sees (docs/dynamic.md, session 14).
-  /// make_dynamic_source sets 0 under an evidence gate ("htx&&geometric").
+  /// Frames a box is carried after the detector reported it, >= 0 (0 = off; counted in detector
+  /// runs with detect_every k > 1), default 10; needs segment. A held box is reported again
+  /// unless a detected box continues it or fewer than hold_min_points foreground points of the
+  /// frame lie in it (grown by box_uncertainty); it moves with their centroid. Covers detection
+  /// misses of people the part head still sees (docs/dynamic.md). make_dynamic_source sets 0
+  /// under an evidence gate ("htx&&geometric").
   int hold_frames = 10;
   int hold_min_points = 5;  ///< foreground points that keep a carried box, >= 1
   /// Longest time [s] a box is carried after its detection, finite, >= 0: with frames far apart
   /// (a sparse selection of a recording) the camera-frame box no longer fits.
   double hold_seconds = 0.5;
-  /// Detector inputs drawn per frame, >= 1 (test-time augmentation; each draw costs one network
-  /// pass, ≈ 16 ms on the 2-vCPU VM). Needs segment (the SparseDetector constructor; ignored
-  /// otherwise). The part head's foreground logit of each preprocessed point is the mean over
-  /// the draws that took it, and a box of a later draw is added (after the first draw's boxes)
-  /// unless a first-draw box continues it (its centre lies within half that box's largest
-  /// horizontal size, as for hold_frames). The draws differ in the points that feed the
-  /// farthest-point sampling, so part of the network's per-draw noise averages out
-  /// (docs/dynamic.md, session 15). 1 = one pass, the behaviour before session 15.
+  /// Detector inputs drawn per frame (test-time augmentation), >= 1, default 1 = one pass; each
+  /// draw costs one network pass. Needs segment. Each point's foreground logit is the mean over
+  /// the draws that took it; a later draw's box is added unless a first-draw box continues it
+  /// (as for hold_frames). See docs/dynamic.md.
   int draws = 1;
-  /// Temporal smoothing of the segmentation, frames >= 0 (0 = off, the behaviour before
-  /// session 15; needs segment): each drawn point's foreground logit is averaged with the logit
-  /// of its nearest drawn point within one preprocess voxel leaf (camera frame) in each of up to
-  /// this many earlier frames no older than hold_seconds. Assumes the camera-frame scene moves
-  /// less than a leaf per frame window where it matters; a person who walks into a voxel
-  /// meets only far points there (no neighbour within the leaf, so no mixing), one who walks
-  /// along a surface mixes with it. Default 10 frames (the hold's third of a second) since
-  /// session 16: with the re-fitted part head it raises seated precision on the synthetic scenes
-  /// from 0.84 / 0.86 to 0.93 / 0.91 and every walker's recall, and the recorded ATE moves within
-  /// the runs' spread (Bonn, 5 specs: mean 0.0151 → 0.0145 m; fr1 unchanged). It was off in
-  /// session 15, when with the older head Bonn `htx` went from 0.0144 to 0.0164 m
-  /// (docs/dynamic.md, sessions 15 and 16). Costs ≈ 3–4 ms per frame.
+  /// Temporal smoothing of the segmentation, frames >= 0 (0 = off), default 10; needs segment.
+  /// Each drawn point's foreground logit is averaged with that of its nearest drawn point within
+  /// one preprocess voxel leaf (camera frame) in each of up to this many earlier frames no older
+  /// than hold_seconds. Costs ≈ 3–4 ms per frame (docs/dynamic.md).
   int segment_frames = 10;
-  /// Spatial smoothing of the segmentation, a weight >= 0, finite (0 = off; needs segment):
-  /// mean-field inference of a binary conditional random field over the drawn points, the part
-  /// head's (draw- and frame-averaged) logits as unaries and a Gaussian kernel
-  /// exp(-d² / leaf²) between each point and its 12 nearest points closer than two preprocess
-  /// voxel leaves (leaf = the largest leaf edge) as the pairwise term (smooth_segmentation with
-  /// this weight and its default iterations). A point the head labels against most of its surface
-  /// neighbours is relabelled. Weight 1 (chosen on the held-out 10 % of the part head's
-  /// training scenes: point precision / recall on frames with a seated humanoid 0.921 / 0.940 →
-  /// 0.938 / 0.965, other frames 0.930 / 0.930 → 0.952 / 0.950, session-15 head) raised seated
-  /// keypoint precision on the synthetic scenes from 0.78 / 0.80 to 0.81 / 0.84 and every
-  /// walker's recall, but it is off by default: on the Bonn crowd ATE with `htx --floor` every
-  /// weight from 0.5 to 1.5 was worse (0.0167–0.0176 m against 0.0151), with `htx` 0.0140–0.0171
-  /// against 0.0144, and with the frame average on as well it adds little (docs/dynamic.md,
-  /// session 16). Costs ≈ 4 ms per frame at 4,096 drawn points.
+  /// Spatial smoothing of the segmentation, a weight >= 0, finite (0 = off, the default; needs
+  /// segment): smooth_segmentation of the part head's (draw- and frame-averaged) logits with
+  /// kernel width one preprocess voxel leaf (its largest edge), this weight and the default
+  /// iterations. Costs ≈ 4 ms per frame at 4,096 drawn points (docs/dynamic.md).
   float segment_smoothing = 0.0F;
   /// Report the segmentation as covering the whole frame (DynamicObjects::segment_outside_boxes;
-  /// needs segment): in frames with a box, the masker marks every keypoint outside the boxes
-  /// that the segmentation test confirms (nearest segmented point a foreground one within
-  /// foreground_radius, not on the floor preprocess removed), not only those a box gated. The
-  /// keypoints a box misses on a person the part head sees (a box too small or misplaced on a
-  /// seated body, a person the detector misses in this frame) are then removed as well. Only
-  /// the foreground connected to a reported box is reported as such (keep_anchored_foreground
-  /// with box_uncertainty; HtxFrameStats::num_unanchored counts the rest, reported as
-  /// background): the part head's labels on furniture away from every box are not trusted. Default
-  /// on since session 17: synthetic sitting_xyz recall 0.862 → 0.960 at the same precision,
-  /// Bonn ATE 0.0143 → 0.0135 m, fr3 person keypoints marked dynamic 0.514 → 0.687
-  /// (docs/dynamic.md, session 17). Off: the segmentation decides inside the boxes only. Under
-  /// an evidence gate ("htx&geometric", "htx&&geometric") it is not used (outside the confirmed
-  /// boxes the part head has no motion evidence).
+  /// needs segment), on by default: in frames with a box the masker also marks the keypoints
+  /// outside the boxes that the segmentation test confirms. Only foreground connected to a
+  /// reported box counts (keep_anchored_foreground with box_uncertainty; the rest is background,
+  /// HtxFrameStats::num_unanchored). Off: the segmentation decides inside the boxes only. Not
+  /// used under a motion gate ("htx&geometric", "htx&&geometric"). See docs/dynamic.md.
   bool segment_outside_boxes = true;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
@@ -403,8 +364,8 @@ class CompositeSource final : public DynamicObjectSource {
   std::shared_ptr<DynamicObjectSource> second_;
 };
 
-/// Options of MotionGatedSource. The defaults are the overlap gate of session 4 (`htx&geometric`);
-/// `evidence` = true is the evidence gate of session 9 (`htx&&geometric`, docs/dynamic.md).
+/// Options of MotionGatedSource. The defaults are the overlap gate (`htx&geometric`);
+/// `evidence` = true is the evidence gate (`htx&&geometric`, docs/dynamic.md).
 struct MotionGateParams {
   /// Evidence gate: besides the overlap with the motion source's objects, a semantic box is kept
   /// when the motion source's raw, unconfirmed evidence inside it (χ²-tested keypoints and
@@ -439,7 +400,7 @@ struct MotionGateParams {
 /// synthetic-only HTx weights on real chairs and desks, models/README.md) then removes nothing on
 /// a static scene, where `htx` alone removes the furniture's features and hurts tracking.
 ///
-/// With MotionGateParams::evidence (`htx&&geometric`, session 9) a semantic 3-D box is also kept
+/// With MotionGateParams::evidence (`htx&&geometric`) a semantic 3-D box is also kept
 /// on the geometric source's raw evidence inside it (its solid, or its rectangle and depth range):
 /// k of the n tested keypoints with χ² > keypoint_chi2, or k of the n tested warp grid pixels
 /// flagged, when P(X >= k) < alpha for X ~ Binomial(n, p0), with p0 the frame's rate of the same
@@ -504,7 +465,7 @@ class MotionGatedSource final : public DynamicObjectSource {
 /// prefix), and `<directory of the running executable>/../share/ds3d/models/NAME` (a relocated
 /// install). NAME is kDefaultHtxWeights.
 [[nodiscard]] std::vector<std::filesystem::path> default_weights_candidates();
-/// File name of the default weights (issue 9 ships them).
+/// File name of the default weights.
 inline constexpr const char* kDefaultHtxWeights = "htx_lite_fast.safetensors";
 /// The first existing default_weights_candidates() entry.
 /// @throws ds3d::IoError naming every path tried when none exists.
@@ -521,7 +482,7 @@ struct DynamicSourceOptions {
 /// (GeometricMotionSource with default parameters), "htx" (HtxSource, weights from `options`),
 /// "A+B" with A and B any of these but none (CompositeSource: A, then B), e.g.
 /// "htx+geometric", "A&B" (MotionGatedSource: A's boxes only where B sees motion), e.g.
-/// "htx&geometric", or "A&&geometric" (MotionGatedSource with the evidence gate, session 9), e.g.
+/// "htx&geometric", or "A&&geometric" (MotionGatedSource with the evidence gate), e.g.
 /// "htx&&geometric"; there A's htx source gets hold_frames = 0 (the gate's own tracks hold the
 /// boxes it confirmed). A "file:" spec takes the rest of the string as its path.
 /// @throws ds3d::InvalidArgument for an unknown name or bad options; ds3d::IoError for an
