@@ -3,63 +3,59 @@
 """RGB-D SLAM front-end conveniences over the compiled ``ds3d.Slam`` (see docs/slam.md)."""
 import os
 
-from ._ds3d import Slam, SlamConfig, _run_slam
+from ._ds3d import FrontendConfig, Slam, _run_slam
+from .config import SlamConfig
 
-__all__ = ["Slam", "SlamConfig", "run_slam"]
+__all__ = ["Slam", "FrontendConfig", "SlamConfig", "run_slam"]
+
+# run_slam's shortcuts for keys of the htx section (htx.<name>).
+_HTX_SHORTCUTS = ("detect_every", "min_score", "hold_frames", "segment_frames",
+                  "segment_outside_boxes")
 
 
-def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
-             dynamic="none", weights=None, detect_every=1, min_score=None, hold_frames=None,
-             draws=1, segment_frames=None, segment_smoothing=None, segment_outside_boxes=True):
-    """Runs the SLAM pipeline on a TUM-layout folder (rgb.txt, depth.txt).
+def run_slam(dataset_dir, camera=None, max_frames=0, config=None, dynamic=None, gate=None,
+             weights=None, threaded=None, **htx):
+    """Runs the SLAM pipeline on a TUM-layout folder (rgb.txt, depth.txt), as ``ds3d-slam``.
 
     Args:
         dataset_dir: folder path (str or os.PathLike).
         camera: None (camera.txt in the folder, else the tum_ros preset), a preset name
             (``tum1 tum2 tum3 tum_ros bonn``) or a camera.txt path.
         max_frames: 0 for all frames, else the first ``max_frames``.
-        threaded: run the pipeline stages in threads (same result either way).
-        config: a ``ds3d.SlamConfig`` (its camera is replaced by the dataset's).
-        dynamic: source of moving objects, as ``ds3d-slam --dynamic``: ``"none"``,
-            ``"geometric"``, ``"htx"``, ``"file:PATH"``, ``"A+B"`` (e.g. ``"htx+geometric"``) or
-            ``"A&B"`` (A's boxes only where B sees motion, e.g. ``"htx&geometric"``) or
-            ``"A&&geometric"`` (A's boxes where the geometric source's raw evidence inside them
-            is significant, tracked while they stay, e.g. ``"htx&&geometric"``);
-            any other than none filters keypoints with the box-gated HDBSCAN filter.
-        weights: HTx weights file for ``htx`` (None: models/htx_lite_fast.safetensors of the
-            source tree, else <prefix>/share/ds3d/models/).
-        detect_every: run the HTx detector on every k-th frame (k >= 1; boxes carried between).
-        min_score: HTx box score threshold in [0, 1] (None: the library default, 0.3).
-        hold_frames: frames an HTx box the detector then misses is held while its part head
-            still sees foreground in it (>= 0; None: the library default, 10; ignored under
-            ``"A&&geometric"``, whose tracks hold the boxes).
-        draws: HTx network passes per frame on different draws of its input (>= 1, default 1):
-            the part head is averaged over them and boxes only later draws find are added.
-        segment_frames: earlier frames whose part-head logits are averaged into each point's
-            (nearest point within one voxel; >= 0; None: the library default, 10; 0 = off).
-        segment_smoothing: weight of the mean-field smoothing of the part head's labels over
-            neighbouring points of the frame (finite, >= 0; None: the library default, 0 =
-            off).
-        segment_outside_boxes: the part head also marks the keypoints it sees on people outside
-            the HTx boxes (default True; False: it decides inside the boxes only).
+        config: a ``ds3d.SlamConfig`` or a dict of keys (docs/configuration.md); None: defaults.
+        dynamic: key ``dynamic.source``: ``"none"``, ``"geometric"``, ``"htx"``,
+            ``"file:PATH"`` or ``"A+B"`` (e.g. ``"htx+geometric"``); any other than none
+            filters keypoints with the box-gated HDBSCAN filter.
+        gate: key ``dynamic.gate``: ``"none"``, ``"motion"`` (boxes only where the geometric
+            source sees motion) or ``"evidence"`` (boxes with significant geometric evidence,
+            tracked).
+        weights: key ``dynamic.weights``, the HTx weights file (None: the shipped model).
+        threaded: key ``pipeline.threaded`` (same result either way).
+        **htx: shortcuts for ``htx.<name>`` keys: detect_every, min_score, hold_frames,
+            segment_frames, segment_outside_boxes.
 
     Returns:
         (N, 8) float64 array: timestamp tx ty tz qx qy qz qw (camera-to-world) per frame.
 
     Raises:
-        ValueError: bad arguments; RuntimeError: unreadable dataset or weights file.
+        ValueError: bad arguments or keys; RuntimeError: unreadable dataset or weights file.
     """
     if int(max_frames) < 0:
         raise ValueError(f"ds3d.run_slam: max_frames must be >= 0 (got {max_frames})")
-    if int(detect_every) < 1:
-        raise ValueError(f"ds3d.run_slam: detect_every must be >= 1 (got {detect_every})")
-    if int(draws) < 1:
-        raise ValueError(f"ds3d.run_slam: draws must be >= 1 (got {draws})")
+    if isinstance(config, SlamConfig):
+        cfg = config.copy()
+    else:
+        cfg = SlamConfig()
+        if config is not None:
+            cfg.update(config)
+    for key, value in (("dynamic.source", dynamic), ("dynamic.gate", gate),
+                       ("dynamic.weights", weights), ("pipeline.threaded", threaded)):
+        if value is not None:
+            cfg[key] = value
+    for name, value in htx.items():
+        if name not in _HTX_SHORTCUTS:
+            raise TypeError(f"ds3d.run_slam: unexpected keyword argument '{name}'")
+        if value is not None:
+            cfg["htx." + name] = value
     return _run_slam(os.fspath(dataset_dir), "" if camera is None else os.fspath(camera),
-                     int(max_frames), bool(threaded), config, str(dynamic),
-                     "" if weights is None else os.fspath(weights), int(detect_every),
-                     None if min_score is None else float(min_score),
-                     None if hold_frames is None else int(hold_frames), int(draws),
-                     None if segment_frames is None else int(segment_frames),
-                     None if segment_smoothing is None else float(segment_smoothing),
-                     bool(segment_outside_boxes))
+                     int(max_frames), cfg._core)

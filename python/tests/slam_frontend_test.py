@@ -8,7 +8,7 @@ from textured_images import textured
 
 
 def test_static_camera_stays_at_origin():
-    slam = ds3d.Slam(ds3d.SlamConfig())
+    slam = ds3d.Slam(ds3d.FrontendConfig())
     rgb = textured(1)
     depth = np.full(rgb.shape[:2], 10000, np.uint16)  # a wall 2 m away
     for i in range(5):
@@ -36,7 +36,7 @@ def test_bad_input_raises_value_error():
     assert slam.last_state == "not_initialized"
     with pytest.raises(ValueError):
         slam.track(np.zeros((480, 640, 3), np.uint8), None, 0.5)  # time went backwards
-    cfg = ds3d.SlamConfig()
+    cfg = ds3d.FrontendConfig()
     cfg.fx = -1.0
     with pytest.raises(ValueError):
         ds3d.Slam(cfg)
@@ -47,14 +47,14 @@ def test_bad_input_raises_value_error():
 
 
 def test_refinement_options_are_exposed_and_validated():
-    cfg = ds3d.SlamConfig()
+    cfg = ds3d.FrontendConfig()
     assert cfg.refine_frame_poses is True and cfg.refine_rounds == 2
     assert cfg.fuse_neighbors is False and 0.0 < cfg.keyframe_ref_ratio < 1.0
     cfg.refine_rounds = -1
     with pytest.raises(ValueError, match="refine_rounds"):
         cfg.validate()
     # Without refinement the finished trajectory equals the online poses.
-    cfg = ds3d.SlamConfig()
+    cfg = ds3d.FrontendConfig()
     cfg.refine_frame_poses = False
     cfg.refine_rounds = 0
     cfg.final_global_ba = False
@@ -68,14 +68,14 @@ def test_refinement_options_are_exposed_and_validated():
 
 
 def test_keyframe_culling_option():
-    cfg = ds3d.SlamConfig()
+    cfg = ds3d.FrontendConfig()
     assert cfg.cull_keyframes is True
     assert cfg.keyframe_redundancy_ratio == pytest.approx(0.9)
     assert cfg.keyframe_redundant_observers == 3
     cfg.keyframe_redundancy_ratio = 1.5
     with pytest.raises(ValueError, match="keyframe_redundancy_ratio"):
         cfg.validate()
-    cfg = ds3d.SlamConfig()
+    cfg = ds3d.FrontendConfig()
     cfg.keyframe_redundant_observers = 0
     with pytest.raises(ValueError, match="keyframe_redundant_observers"):
         ds3d.Slam(cfg)
@@ -88,7 +88,7 @@ def test_keyframe_culling_option():
     order = order + order
     counts = {}
     for cull in (False, True):
-        cfg = ds3d.SlamConfig()
+        cfg = ds3d.FrontendConfig()
         cfg.keyframe_ref_ratio = 1.0
         cfg.cull_keyframes = cull
         slam = ds3d.Slam(cfg)

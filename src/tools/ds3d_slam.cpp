@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -32,6 +33,7 @@
 #pragma GCC diagnostic ignored "-Wrestrict"
 #include "ds3d/slam/dataset.hpp"
 #include "ds3d/detail/json.hpp"
+#include "ds3d/slam/config.hpp"
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
 #include "ds3d/slam/slam_frontend.hpp"
@@ -42,96 +44,42 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
-    "                 [--dynamic none|geometric|htx|htx+geometric|htx&geometric|htx&&geometric|\n"
-    "                            file:PATH]\n"
-    "                 [--weights PATH]\n"
-    "                 [--detect-every K] [--min-score S] [--hold-frames K] [--floor]\n"
-    "                 [--no-segment] [--htx-draws N] [--segment-frames K]\n"
-    "                 [--segment-smoothing W] [--segment-boxes-only] [--max-frames N]\n"
-    "                 [--stats "
-    "stats.json] "
-    "[--viz OUT_DIR]\n"
-    "                 [--keyframes kf.txt] [--map map.ply] [--no-threads] [--no-local-ba]\n"
-    "                 [--fusion] [--local-window N] [--bf BF] [--kf-ratio R]\n"
-    "                 [--cull-keyframes | --no-cull-keyframes] [--kf-redundancy R]\n"
-    "                 [--no-refine] [--refine-rounds N] [--cv-threads N] [--quiet]\n"
+    "                 [--dynamic none|geometric|htx|file:PATH|A+B] [--gate none|motion|evidence]\n"
+    "                 [--weights PATH] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
+    "                 [--keyframes kf.txt] [--map map.ply] [--config FILE] [--set KEY=VALUE]...\n"
+    "                 [--quiet]\n"
+    "       ds3d-slam [--config FILE] [--set KEY=VALUE]... --dump-config\n"
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
     "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present.\n"
-    "--dynamic: where boxes of moving objects come from: none (keep every keypoint), geometric\n"
-    "  (multi-view motion, no learned weights), htx (the HTx-lite 3-D detector on the "
-    "preprocessed\n"
-    "  depth), file:PATH (JSON lines, see detections.hpp), or A+B: A, then B on what A left\n"
-    "  (htx+geometric is 3DS-SLAM's semantic-then-geometric order), or A&B: A's boxes only where\n"
-    "  B sees motion in the frame (htx&geometric: detected people that move), or A&&geometric:\n"
-    "  A's boxes where the geometric source's raw evidence inside them is significant, tracked\n"
-    "  while they stay (MotionGateParams::evidence, docs/dynamic.md); keypoints in the boxes go\n"
-    "  through the box-gated HDBSCAN filter (dynamic_filter.hpp).\n"
-    "--weights: HTx weights file (default: models/htx_lite_fast.safetensors of the source tree,\n"
-    "  else <prefix>/share/ds3d/models/). --detect-every K: run the detector on every K-th frame\n"
-    "  (default 1; the frames between reuse its boxes). --min-score S: detector score threshold\n"
-    "  in [0, 1] (default 0.3). --hold-frames K: carry a box the detector missed up to K frames\n"
-    "  while its part head still sees foreground in it (default 10, 0 = off). --floor:\n"
-    "  keypoints on the floor plane that the detector's preprocessing finds stay static\n"
-    "  (HtxSourceParams::report_floor; off by default, see docs/dynamic.md: better precision on\n"
-    "  synthetic scenes, fewer person keypoints removed on recorded ones). --no-segment: do\n"
-    "  not confirm the detector's boxes with its part head's foreground points\n"
-    "  (HtxSourceParams::segment, on by default). --htx-draws N: run the\n"
-    "  network on N draws of its input per frame, average the part head over them and add the\n"
-    "  boxes the later draws find (default 1; each draw costs one network pass).\n"
-    "  --segment-frames K: average each point's part-head logit with its nearest point's (within\n"
-    "  one voxel) in each of the last K frames (default 10, 0 = off). --segment-smoothing W:\n"
-    "  weight of the spatial mean-field smoothing of the part head's labels over neighbouring\n"
-    "  points (default 0 = off). --segment-boxes-only: the part head decides inside the boxes\n"
-    "  only (by default it also marks the keypoints it sees on people outside them). All four:\n"
-    "  docs/dynamic.md.\n"
-    "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
+    "--dynamic: where boxes of moving objects come from (key dynamic.source, default none):\n"
+    "  none (keep every keypoint), geometric (multi-view motion, no learned weights), htx (the\n"
+    "  HTx-lite 3-D detector on the preprocessed depth), file:PATH (JSON lines, see\n"
+    "  detections.hpp), or A+B: A, then B on what A left (htx+geometric is 3DS-SLAM's\n"
+    "  semantic-then-geometric order). Keypoints in the boxes go through the box-gated HDBSCAN\n"
+    "  filter (dynamic_filter.hpp).\n"
+    "--gate (key dynamic.gate, default none): motion keeps the boxes only in frames where the\n"
+    "  geometric source sees motion; evidence keeps a box while the geometric source's evidence\n"
+    "  inside it is significant, and tracks it (docs/dynamic.md).\n"
+    "--weights: HTx weights file (key dynamic.weights; default models/htx_lite_fast.safetensors\n"
+    "  of the source tree, else <prefix>/share/ds3d/models/).\n"
+    "--viz: one PNG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
     "(blue).\n"
-    "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
-    "  default: it hurts on dynamic scenes without a dynamic filter, see docs/slam.md).\n"
-    "--local-window: keyframes optimised by local BA (default 10).\n"
-    "--bf: virtual stereo baseline × fx for the depth residual [px·m] (default 40, ORB-SLAM2's).\n"
-    "--kf-ratio: keyframe when fewer than this fraction of the reference keyframe's points are\n"
-    "  tracked (default 0.75, ORB-SLAM2's RGB-D value), in (0, 1].\n"
-    "--cull-keyframes / --no-cull-keyframes: remove redundant keyframes (ORB-SLAM2's\n"
-    "  KeyFrameCulling: > R of their close points seen by >= 3 other keyframes at the same or a\n"
-    "  finer scale; default on, see docs/slam.md). --kf-redundancy R: that ratio (default 0.9),\n"
-    "  in (0, 1].\n"
-    "--no-refine: keep the tracked poses (by default, after the final global BA each non-keyframe\n"
-    "  pose is re-optimised against the final map). --refine-rounds N: then N rounds of (update\n"
-    "  every map point from all frames' matches; re-optimise the frames) (default 2).\n"
-    "--cv-threads: OpenCV's own worker threads (default 1: the pipeline stages are the threads).\n";
+    "--config FILE: keys from a YAML or JSON file (nested `htx: {min_score: 0.4}` or dotted\n"
+    "  `htx.min_score: 0.4`); --set KEY=VALUE overrides one key (repeatable; after --config,\n"
+    "  in command-line order with --dynamic, --gate and --weights). --dump-config prints every\n"
+    "  key with its value and help line as YAML and exits (docs/configuration.md).\n";
 
 struct Args {
   std::filesystem::path dataset;
   std::string camera;
   std::filesystem::path out = "trajectory.txt";
-  std::string dynamic = "none";
-  std::filesystem::path weights;
-  int detect_every = 1;
-  float min_score = -1.0F;  // < 0 = the HtxSourceParams default
-  int hold_frames = -1;     // < 0 = the HtxSourceParams default
-  int draws = 1;
-  int segment_frames = -1;          // < 0 = the HtxSourceParams default
-  float segment_smoothing = -1.0F;  // < 0 = the HtxSourceParams default
-  bool floor = false;
-  bool no_segment = false;
-  bool segment_boxes_only = false;
+  ds3d::slam::SlamConfig config;
   std::size_t max_frames = 0;
   std::filesystem::path stats;
   std::filesystem::path viz;
   std::filesystem::path keyframes;
   std::filesystem::path map;
-  bool threads = true;
-  bool local_ba = true;
-  bool fusion = false;
-  int local_window = 0;      // 0 = the FrontendConfig default
-  double bf = 0;             // 0 = the FrontendConfig default
-  double kf_ratio = 0;       // 0 = the FrontendConfig default
-  int cull_keyframes = -1;   // < 0 = the FrontendConfig default, else 0/1
-  double kf_redundancy = 0;  // 0 = the FrontendConfig default
-  bool refine = true;
-  int refine_rounds = -1;  // < 0 = the FrontendConfig default
-  int cv_threads = 1;
+  bool dump_config = false;
   bool quiet = false;
 };
 
@@ -140,42 +88,34 @@ struct Args {
   std::exit(2);
 }
 
-long parse_int(const std::string& flag, const std::string& v, long lo) {
-  char* end = nullptr;
-  const long x = std::strtol(v.c_str(), &end, 10);
-  if (v.empty() || end == nullptr || *end != '\0' || x < lo) {
-    std::ostringstream msg;
-    msg << flag << " expects an integer >= " << lo << " (got '" << v << "')";
-    usage_error(msg.str());
+std::size_t parse_count(const std::string& flag, const std::string& v) {
+  std::size_t x = 0;
+  const auto r = std::from_chars(v.data(), v.data() + v.size(), x);
+  if (v.empty() || r.ec != std::errc() || r.ptr != v.data() + v.size()) {
+    usage_error(flag + " expects an integer >= 0 (got '" + v + "')");
   }
   return x;
 }
 
-// A ratio in (0, 1]; anything else is a usage error naming the flag and the value.
-double parse_fraction(const std::string& flag, const std::string& v) {
-  char* end = nullptr;
-  const double x = std::strtod(v.c_str(), &end);
-  if (v.empty() || *end != '\0' || !(x > 0 && x <= 1)) {
-    usage_error(flag + " expects a number in (0, 1] (got '" + v + "')");
+// --set KEY=VALUE, --dynamic, --gate and --weights in command-line order, after every --config.
+void apply_settings(Args& a, const std::vector<std::filesystem::path>& files,
+                    const std::vector<std::pair<std::string, std::string>>& sets) {
+  try {
+    for (const auto& f : files) ds3d::slam::apply_config_file(a.config, f);
+    for (const auto& [k, v] : sets) a.config.set(k, v);
+    a.config.validate();
+  } catch (const ds3d::InvalidArgument& e) {
+    usage_error(e.what());
+  } catch (const ds3d::IoError& e) {
+    usage_error(e.what());
   }
-  return x;
-}
-
-// A finite number in [lo, hi]; anything else is a usage error naming the flag, `range` (the
-// accepted values in words) and the value.
-float parse_float(const std::string& flag, const std::string& v, float lo, float hi,
-                  const std::string& range) {
-  char* end = nullptr;
-  const float x = std::strtof(v.c_str(), &end);
-  if (v.empty() || *end != '\0' || !std::isfinite(x) || !(x >= lo && x <= hi)) {
-    usage_error(flag + " expects " + range + " (got '" + v + "')");
-  }
-  return x;
 }
 
 Args parse(int argc, char** argv) {
   Args a;
   std::vector<std::string> pos;
+  std::vector<std::filesystem::path> files;
+  std::vector<std::pair<std::string, std::string>> sets;
   for (int i = 1; i < argc; ++i) {
     const std::string s = argv[i];
     auto value = [&]() -> std::string {
@@ -190,31 +130,14 @@ Args parse(int argc, char** argv) {
     } else if (s == "--out") {
       a.out = value();
     } else if (s == "--dynamic") {
-      a.dynamic = value();
+      sets.emplace_back("dynamic.source", value());
+    } else if (s == "--gate") {
+      sets.emplace_back("dynamic.gate", value());
     } else if (s == "--weights") {
-      a.weights = value();
-      if (a.weights.empty()) usage_error("--weights needs a non-empty path");
-    } else if (s == "--detect-every") {
-      a.detect_every = static_cast<int>(parse_int(s, value(), 1));
-    } else if (s == "--min-score") {
-      a.min_score = parse_float(s, value(), 0.0F, 1.0F, "a number in [0, 1]");
-    } else if (s == "--hold-frames") {
-      a.hold_frames = static_cast<int>(parse_int(s, value(), 0));
-    } else if (s == "--htx-draws") {
-      a.draws = static_cast<int>(parse_int(s, value(), 1));
-    } else if (s == "--segment-frames") {
-      a.segment_frames = static_cast<int>(parse_int(s, value(), 0));
-    } else if (s == "--segment-smoothing") {
-      a.segment_smoothing =
-          parse_float(s, value(), 0.0F, std::numeric_limits<float>::max(), "a finite number >= 0");
-    } else if (s == "--floor") {
-      a.floor = true;
-    } else if (s == "--no-segment") {
-      a.no_segment = true;
-    } else if (s == "--segment-boxes-only") {
-      a.segment_boxes_only = true;
+      sets.emplace_back("dynamic.weights", value());
+      if (sets.back().second.empty()) usage_error("--weights needs a non-empty path");
     } else if (s == "--max-frames") {
-      a.max_frames = static_cast<std::size_t>(parse_int(s, value(), 0));
+      a.max_frames = parse_count(s, value());
     } else if (s == "--stats") {
       a.stats = value();
     } else if (s == "--viz") {
@@ -223,30 +146,15 @@ Args parse(int argc, char** argv) {
       a.keyframes = value();
     } else if (s == "--map") {
       a.map = value();
-    } else if (s == "--no-threads") {
-      a.threads = false;
-    } else if (s == "--no-local-ba") {
-      a.local_ba = false;
-    } else if (s == "--fusion") {
-      a.fusion = true;
-    } else if (s == "--bf") {
-      a.bf = std::stod(value());
-    } else if (s == "--kf-ratio") {
-      a.kf_ratio = parse_fraction(s, value());
-    } else if (s == "--cull-keyframes") {
-      a.cull_keyframes = 1;
-    } else if (s == "--no-cull-keyframes") {
-      a.cull_keyframes = 0;
-    } else if (s == "--kf-redundancy") {
-      a.kf_redundancy = parse_fraction(s, value());
-    } else if (s == "--refine-rounds") {
-      a.refine_rounds = static_cast<int>(parse_int(s, value(), 0));
-    } else if (s == "--no-refine") {
-      a.refine = false;
-    } else if (s == "--local-window") {
-      a.local_window = static_cast<int>(parse_int(s, value(), 2));
-    } else if (s == "--cv-threads") {
-      a.cv_threads = static_cast<int>(parse_int(s, value(), 0));
+    } else if (s == "--config") {
+      files.emplace_back(value());
+    } else if (s == "--set") {
+      const std::string kv = value();
+      const auto eq = kv.find('=');
+      if (eq == std::string::npos || eq == 0) usage_error("--set expects KEY=VALUE (got '" + kv + "')");
+      sets.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+    } else if (s == "--dump-config") {
+      a.dump_config = true;
     } else if (s == "--quiet") {
       a.quiet = true;
     } else if (!s.empty() && s[0] == '-') {
@@ -255,27 +163,13 @@ Args parse(int argc, char** argv) {
       pos.push_back(s);
     }
   }
+  apply_settings(a, files, sets);
+  if (a.dump_config) {
+    std::cout << ds3d::slam::dump_config(a.config);
+    std::exit(0);
+  }
   if (pos.size() != 1) usage_error("expected exactly one DATASET_DIR");
   a.dataset = pos[0];
-  const bool uses_htx =
-      a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
-  if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor ||
-                    a.no_segment || a.hold_frames >= 0 || a.draws != 1 || a.segment_frames >= 0 ||
-                    a.segment_smoothing >= 0.0F || a.segment_boxes_only)) {
-    usage_error(
-        "--weights, --detect-every, --min-score, --hold-frames, --floor, --no-segment, "
-        "--htx-draws, --segment-frames, --segment-smoothing and --segment-boxes-only need "
-        "--dynamic htx or htx+...");
-  }
-  if (a.no_segment && (a.segment_frames > 0 || a.draws != 1 || a.segment_smoothing > 0.0F ||
-                       a.segment_boxes_only)) {
-    usage_error(
-        "--segment-frames, --htx-draws, --segment-smoothing and --segment-boxes-only act on the "
-        "part head's segmentation: not with --no-segment");
-  }
-  if (a.hold_frames >= 0 && a.dynamic.find("&&") != std::string::npos) {
-    usage_error("--hold-frames has no effect with --dynamic A&&geometric (its tracks hold boxes)");
-  }
   return a;
 }
 
@@ -299,6 +193,7 @@ Percentiles percentiles(std::vector<double> v) {
 // stage's thread, the drawing on the caller's).
 class RecordingMasker final : public ds3d::slam::DynamicFeatureMasker {
  public:
+  explicit RecordingMasker(const ds3d::DynamicFilterParams& params) : inner_(params) {}
   std::vector<std::uint8_t> mask(const ds3d::slam::FrameInput& frame,
                                  const ds3d::PinholeCamera& camera,
                                  const ds3d::slam::OrbFeatures& features,
@@ -351,26 +246,16 @@ void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
   char name[32];
   std::snprintf(name, sizeof(name), "frame_%06zu.png", r.index);
   const auto path = dir / name;
-  DS3D_CHECK_AS(ds3d::IoError, cv::imwrite(path.string(), img), "ds3d-slam: cannot write ",
+  DS3D_CHECK_AS(ds3d::IoError, cv::imwrite(path.string(), img), "cannot write ",
                 path.string());
 }
 
 int run(const Args& a) {
+  const ds3d::slam::SlamConfig& c = a.config;
   // The source first: a bad --dynamic or --weights fails before any image is read.
-  ds3d::slam::DynamicSourceOptions sopt;
-  sopt.weights = a.weights;
-  sopt.htx.detect_every = a.detect_every;
-  if (a.min_score >= 0.0F) sopt.htx.min_score = a.min_score;
-  if (a.hold_frames >= 0) sopt.htx.hold_frames = a.hold_frames;
-  sopt.htx.draws = a.draws;
-  if (a.segment_frames >= 0) sopt.htx.segment_frames = a.segment_frames;
-  if (a.segment_smoothing >= 0.0F) sopt.htx.segment_smoothing = a.segment_smoothing;
-  sopt.htx.report_floor = a.floor;
-  sopt.htx.segment = !a.no_segment;
-  sopt.htx.segment_outside_boxes = !a.segment_boxes_only;
   std::shared_ptr<ds3d::slam::DynamicObjectSource> source;
   try {
-    source = ds3d::slam::make_dynamic_source(a.dynamic, sopt);
+    source = ds3d::slam::make_dynamic_source(c);
   } catch (const ds3d::InvalidArgument& e) {
     usage_error(e.what());
   }
@@ -381,25 +266,15 @@ int run(const Args& a) {
     dopt.camera = preset ? ds3d::camera_preset(a.camera) : ds3d::read_camera_file(a.camera);
   }
   const auto ds = ds3d::RgbdDataset::open(a.dataset, dopt);
-  DS3D_CHECK_AS(ds3d::IoError, ds.size() > 0, "ds3d-slam: no associated rgb/depth pairs in ",
+  DS3D_CHECK_AS(ds3d::IoError, ds.size() > 0, "no associated rgb/depth pairs in ",
                 a.dataset.string());
-  cv::setNumThreads(a.cv_threads);
+  cv::setNumThreads(c.cv_threads);
 
-  ds3d::slam::FrontendConfig cfg;
+  ds3d::slam::FrontendConfig cfg = c.frontend;
   cfg.camera = ds.camera();
-  cfg.enable_local_ba = a.local_ba;
-  cfg.fuse_neighbors = a.fusion;
-  if (a.local_window > 0) cfg.local_window = a.local_window;
-  if (a.bf > 0) cfg.bf = a.bf;
-  if (a.kf_ratio > 0) cfg.keyframe_ref_ratio = a.kf_ratio;
-  if (a.cull_keyframes >= 0) cfg.cull_keyframes = a.cull_keyframes != 0;
-  if (a.kf_redundancy > 0) cfg.keyframe_redundancy_ratio = a.kf_redundancy;
-  cfg.refine_frame_poses = a.refine;
-  if (a.refine_rounds >= 0) cfg.refine_rounds = a.refine_rounds;
-  cfg.mapping_thread = a.threads;
   std::shared_ptr<RecordingMasker> masker;
-  if (a.dynamic != "none") {
-    masker = std::make_shared<RecordingMasker>();
+  if (c.dynamic != "none") {
+    masker = std::make_shared<RecordingMasker>(c.filter);
     masker->set_record(!a.viz.empty());
   }
   ds3d::slam::SlamFrontend slam(cfg, source, masker);
@@ -431,9 +306,7 @@ int run(const Args& a) {
       std::fflush(stderr);
     }
   };
-  ds3d::slam::PipelineOptions popt;
-  popt.threaded = a.threads;
-  const auto results = ds3d::slam::run_dataset(slam, ds, total, on_result, popt);
+  const auto results = ds3d::slam::run_dataset(slam, ds, total, on_result, c.pipeline);
   if (tty) std::fprintf(stderr, "\n");
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
@@ -481,8 +354,9 @@ int run(const Args& a) {
          << "}" << (comma ? ",\n" : "\n");
     };
     js << "{\n  \"dataset\": \"" << json_escape(a.dataset.string()) << "\",\n"
-       << "  \"dynamic\": \"" << json_escape(a.dynamic) << "\",\n"
-       << "  \"detect_every\": " << a.detect_every << ",\n"
+       << "  \"dynamic\": \"" << json_escape(c.dynamic) << "\",\n"
+       << "  \"gate\": \"" << ds3d::slam::to_string(c.gate) << "\",\n"
+       << "  \"detect_every\": " << c.htx.detect_every << ",\n"
        << "  \"frames\": " << results.size() << ",\n"
        << "  \"tracked_frames\": " << tracked << ",\n"
        << "  \"lost_frames\": " << lost << ",\n"
@@ -490,7 +364,7 @@ int run(const Args& a) {
        << "  \"keyframes\": " << slam.num_keyframes() << ",\n"
        << "  \"culled_keyframes\": " << slam.culled_keyframes().size() << ",\n"
        << "  \"map_points\": " << slam.map_points().rows() << ",\n"
-       << "  \"threaded\": " << (a.threads ? "true" : "false") << ",\n"
+       << "  \"threaded\": " << (c.pipeline.threaded ? "true" : "false") << ",\n"
        << "  \"wall_s\": " << json_number(wall_s) << ",\n"
        << "  \"fps_mean\": " << json_number(static_cast<double>(results.size()) / wall_s) << ",\n"
        << "  \"fps_median\": " << json_number(fps_p.median) << ",\n"
@@ -512,7 +386,7 @@ int run(const Args& a) {
     js << "  }\n}\n";
     std::ofstream out(a.stats);
     out << js.str();
-    DS3D_CHECK_AS(ds3d::IoError, out.good(), "ds3d-slam: cannot write ", a.stats.string());
+    DS3D_CHECK_AS(ds3d::IoError, out.good(), "cannot write ", a.stats.string());
   }
   if (!a.quiet) {
     std::cout << "frames " << results.size() << ", tracked " << tracked << ", lost " << lost

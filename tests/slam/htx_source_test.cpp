@@ -1082,35 +1082,28 @@ TEST(Ds3dSlamCli, HtxOptions) {
   EXPECT_EQ(r.code, 1) << r.output;
   EXPECT_NE(r.output.find("ds3d-slam:"), std::string::npos) << r.output;
   // usage errors: exit 2
-  EXPECT_EQ(run_cli(ds + " --weights x.safetensors").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --detect-every 0").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --min-score 2").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic geometric --floor").code, 2);  // --floor needs htx
-  EXPECT_EQ(run_cli(ds + " --dynamic geometric --no-segment").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic geometric --hold-frames 3").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic 'htx&&geometric' --hold-frames 3").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --hold-frames -1").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --htx-draws 0").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --segment-frames -1").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic geometric --htx-draws 2").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic geometric --segment-frames 3").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --no-segment --segment-frames 3").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --no-segment --htx-draws 2").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --segment-smoothing -1").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --segment-smoothing nan").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --segment-smoothing 1x").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic geometric --segment-smoothing 1").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --no-segment --segment-smoothing 1").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic geometric --segment-boxes-only").code, 2);
-  EXPECT_EQ(run_cli(ds + " --dynamic htx --no-segment --segment-boxes-only").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --set htx.detect_every=0").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --set htx.min_score=2").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --set htx.hold_frames=-1").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --set htx.segment_frames=-1").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --set htx.report_floor=maybe").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --set htx.min_score").code, 2);
+  EXPECT_EQ(run_cli(ds + " --dynamic htx --gate sometimes").code, 2);
+  EXPECT_EQ(run_cli(ds + " --gate motion").code, 2);  // nothing to gate
+  EXPECT_EQ(run_cli(ds + " --dynamic 'htx&geometric'").code, 2);  // the old, shell-unsafe grammar
+  r = run_cli(ds + " --set htx.no_such_key=1");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("htx.no_such_key"), std::string::npos) << r.output;
   r = run_cli(ds + " --dynamic htx+nothing");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("nothing"), std::string::npos) << r.output;
   // a run with the fixture weights, every 2nd frame, and the composite
   for (const std::string spec : {"htx", "htx+geometric"}) {
     r = run_cli(ds + " --dynamic " + spec + " --weights '" + fixture_weights().string() +
-                "' --detect-every 2 --min-score 0 --floor --quiet --no-threads" +
-                (spec == "htx" ? " --no-segment" : " --segment-boxes-only") + " --out '" +
+                "' --set htx.detect_every=2 --set htx.min_score=0 --set htx.report_floor=true" +
+                " --quiet --set pipeline.threaded=false --set frontend.mapping_thread=false" +
+                (spec == "htx" ? " --set htx.segment=false" : " --set htx.segment_outside_boxes=0") +
+                " --out '" +
                 (dir / "traj.txt").string() + "' --stats '" + (dir / "stats.json").string() + "'");
     EXPECT_EQ(r.code, 0) << spec << ": " << r.output;
     const auto stats = ds3d::test::read_json(dir / "stats.json");

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
-// Bindings for include/ds3d/slam_frontend.hpp (ds3d.Slam, ds3d.SlamConfig, ds3d._run_slam).
+// Bindings for include/ds3d/slam_frontend.hpp (ds3d.Slam, ds3d.FrontendConfig, ds3d._run_slam).
 // Conveniences (run_slam's argument handling) live in python/ds3d/slam.py.
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
@@ -11,6 +11,7 @@
 #include <string>
 
 #include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/config.hpp"
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
 #include "ds3d/slam/slam_frontend.hpp"
@@ -96,7 +97,7 @@ ds3d::PinholeCamera camera_from(const std::string& spec) {
 
 void bind_slam_frontend(py::module_& m) {
   py::class_<FrontendConfig>(
-      m, "SlamConfig",
+      m, "FrontendConfig",
       "Configuration of ds3d.Slam (include/ds3d/slam_frontend.hpp FrontendConfig).\n"
       "Camera fields are flattened: fx fy cx cy width height k1 k2 p1 p2 k3 depth_scale.")
       .def(py::init<>())
@@ -154,7 +155,7 @@ void bind_slam_frontend(py::module_& m) {
   py::class_<PySlam>(
       m, "Slam",
       "ORB + Ceres RGB-D SLAM front-end (include/ds3d/slam_frontend.hpp SlamFrontend).\n"
-      "Slam(config=SlamConfig()); track(rgb, depth, timestamp) -> 4x4 camera-to-world.")
+      "Slam(config=FrontendConfig()); track(rgb, depth, timestamp) -> 4x4 camera-to-world.")
       .def(py::init<const FrontendConfig&>(), py::arg("config") = FrontendConfig{})
       .def(
           "track", &PySlam::track, py::arg("rgb"), py::arg("depth"), py::arg("timestamp"),
@@ -184,48 +185,30 @@ void bind_slam_frontend(py::module_& m) {
       .def_property_readonly("num_keyframes", [](PySlam& s) { return s.slam().num_keyframes(); })
       .def_property_readonly(
           "num_culled_keyframes", [](PySlam& s) { return s.slam().culled_keyframes().size(); },
-          "Keyframes removed by keyframe culling (SlamConfig.cull_keyframes) so far.");
+          "Keyframes removed by keyframe culling (FrontendConfig.cull_keyframes) so far.");
 
   m.def(
       "_run_slam",
       [](const std::string& dataset_dir, const std::string& camera, std::size_t max_frames,
-         bool threaded, std::optional<FrontendConfig> config, const std::string& dynamic,
-         const std::string& weights, int detect_every, std::optional<float> min_score,
-         std::optional<int> hold_frames, int draws, std::optional<int> segment_frames,
-         std::optional<float> segment_smoothing, bool segment_outside_boxes) {
-        ds3d::slam::DynamicSourceOptions sopt;
-        sopt.htx.segment_outside_boxes = segment_outside_boxes;
-        if (segment_smoothing) sopt.htx.segment_smoothing = *segment_smoothing;
-        sopt.htx.draws = draws;
-        if (segment_frames) sopt.htx.segment_frames = *segment_frames;
-        sopt.weights = weights;
-        sopt.htx.detect_every = detect_every;
-        if (min_score) sopt.htx.min_score = *min_score;
-        if (hold_frames) sopt.htx.hold_frames = *hold_frames;
+         const ds3d::slam::SlamConfig& c) {
+        c.validate();
         // The source first, as ds3d-slam does: bad options fail before any image is read.
-        auto source = ds3d::slam::make_dynamic_source(dynamic, sopt);
-        std::shared_ptr<ds3d::slam::DynamicFeatureMasker> masker;
-        if (dynamic != "none") masker = std::make_shared<ds3d::slam::HdbscanMasker>();
+        auto source = ds3d::slam::make_dynamic_source(c);
+        auto masker = ds3d::slam::make_masker(c);
         ds3d::DatasetOptions opt;
         if (!camera.empty()) opt.camera = camera_from(camera);
         const auto ds = ds3d::RgbdDataset::open(dataset_dir, opt);
-        FrontendConfig cfg = config.value_or(FrontendConfig{});
+        FrontendConfig cfg = c.frontend;
         cfg.camera = ds.camera();
         ds3d::slam::SlamFrontend slam(cfg, source, masker);
-        ds3d::slam::PipelineOptions po;
-        po.threaded = threaded;
         std::vector<ds3d::slam::FramePose> poses;
         {
           const py::gil_scoped_release release;
-          (void)ds3d::slam::run_dataset(slam, ds, max_frames, {}, po);
+          (void)ds3d::slam::run_dataset(slam, ds, max_frames, {}, c.pipeline);
           poses = slam.trajectory();
         }
         return poses_to_array(poses);
       },
-      py::arg("dataset_dir"), py::arg("camera") = "", py::arg("max_frames") = 0,
-      py::arg("threaded") = true, py::arg("config") = py::none(), py::arg("dynamic") = "none",
-      py::arg("weights") = "", py::arg("detect_every") = 1, py::arg("min_score") = py::none(),
-      py::arg("hold_frames") = py::none(), py::arg("draws") = 1,
-      py::arg("segment_frames") = py::none(), py::arg("segment_smoothing") = py::none(),
-      py::arg("segment_outside_boxes") = true, "Internal: see ds3d.run_slam.");
+      py::arg("dataset_dir"), py::arg("camera"), py::arg("max_frames"), py::arg("config"),
+      "Internal: see ds3d.run_slam.");
 }

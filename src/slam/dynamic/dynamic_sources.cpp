@@ -1295,12 +1295,12 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
       "none, geometric, htx, file:PATH, A+B (e.g. htx+geometric), A&B (e.g. htx&geometric) or "
       "A&&geometric (e.g. htx&&geometric)";
   if (spec == "none") return std::make_shared<NoDynamicObjects>();
-  if (spec == "geometric") return std::make_shared<GeometricMotionSource>();
+  if (spec == "geometric") return std::make_shared<GeometricMotionSource>(options.geometric);
   if (spec.rfind("file:", 0) == 0) {
     const std::string path = spec.substr(5);
     DS3D_CHECK(!path.empty(), "ds3d::slam::make_dynamic_source: 'file:' needs a path (got '", spec,
                "')");
-    return std::make_shared<FileSource>(path);
+    return std::make_shared<FileSource>(path, options.file);
   }
   if (spec == "htx") {
     const std::filesystem::path weights =

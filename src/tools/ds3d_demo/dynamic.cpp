@@ -67,6 +67,7 @@ Row run_mode(const std::string& mode, const ds3d::synth::SyntheticScene& scene) 
   std::shared_ptr<ds3d::slam::DynamicFeatureMasker> masker;
   if (mode == "oracle-boxes") src = std::make_shared<OracleSource>(scene);
   if (mode == "geometric") src = std::make_shared<ds3d::slam::GeometricMotionSource>();
+  if (mode == "htx" || mode == "htx+geometric") src = ds3d::slam::make_dynamic_source(mode);
   if (src) masker = std::make_shared<ds3d::slam::HdbscanMasker>();
   ds3d::slam::SlamFrontend slam(cfg, src, masker);
   std::int64_t tp = 0, fp = 0, fn = 0;
@@ -96,7 +97,7 @@ Row run_mode(const std::string& mode, const ds3d::synth::SyntheticScene& scene) 
 void write_svg(const std::filesystem::path& path, const ds3d::Trajectory& gt,
                const std::vector<Row>& rows, const std::vector<ds3d::AteResult>& ate) {
   // Top view (x, y of the aligned estimates against the groundtruth), auto-scaled.
-  const char* colours[] = {"#d62728", "#2ca02c", "#1f77b4"};
+  const char* colours[] = {"#d62728", "#2ca02c", "#1f77b4", "#9467bd", "#ff7f0e"};
   double x0 = 1e30, x1 = -1e30, y0 = 1e30, y1 = -1e30;
   for (const auto& p : gt) {
     x0 = std::min(x0, p.T_world_cam.translation().x());
@@ -108,7 +109,7 @@ void write_svg(const std::filesystem::path& path, const ds3d::Trajectory& gt,
   x0 -= pad, x1 += pad, y0 -= pad, y1 += pad;
   const double s = 480.0 / std::max(x1 - x0, y1 - y0);
   std::ofstream out(path);
-  out << "<svg xmlns='http://www.w3.org/2000/svg' width='520' height='560'>\n"
+  out << "<svg xmlns='http://www.w3.org/2000/svg' width='520' height='600'>\n"
       << "<rect width='100%' height='100%' fill='white'/>\n";
   const auto polyline = [&](const std::vector<Eigen::Vector3d>& pts, const char* colour) {
     out << "<polyline fill='none' stroke='" << colour << "' stroke-width='1.5' points='";
@@ -121,9 +122,9 @@ void write_svg(const std::filesystem::path& path, const ds3d::Trajectory& gt,
   for (std::size_t m = 0; m < rows.size(); ++m) {
     std::vector<Eigen::Vector3d> e;
     for (const auto& match : ate[m].matches) e.push_back(match.p_est);
-    polyline(e, colours[m % 3]);
+    polyline(e, colours[m % 5]);
     out << "<text x='20' y='" << 525 + 12 * static_cast<int>(m) << "' font-size='11' fill='"
-        << colours[m % 3] << "'>" << rows[m].mode << ": ATE " << ate[m].rmse << " m</text>\n";
+        << colours[m % 5] << "'>" << rows[m].mode << ": ATE " << ate[m].rmse << " m</text>\n";
   }
   out << "<text x='300' y='525' font-size='11'>black: groundtruth (top view)</text>\n</svg>\n";
 }
@@ -143,7 +144,7 @@ DS3D_DEMO_STEP(60, "dynamic-feature removal: SLAM on a synthetic walking sequenc
                  }
                  std::vector<Row> rows;
                  std::vector<ds3d::AteResult> ate;
-                 for (const char* mode : {"none", "oracle-boxes", "geometric"}) {
+                 for (const char* mode : {"none", "oracle-boxes", "geometric", "htx", "htx+geometric"}) {
                    rows.push_back(run_mode(mode, scene));
                    ate.push_back(ds3d::evaluate_ate(gt, rows.back().traj));
                    ds3d::write_tum_trajectory(

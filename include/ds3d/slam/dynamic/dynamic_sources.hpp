@@ -21,6 +21,7 @@
 #include "ds3d/dynamic/detections.hpp"
 #include "ds3d/dynamic/dynamic_filter.hpp"
 #include "ds3d/preprocess/preprocess.hpp"
+#include "ds3d/slam/dynamic/geometric_motion.hpp"
 #include "ds3d/slam/slam_frontend.hpp"
 #include "ds3d/htx/sparse_detector.hpp"
 
@@ -475,7 +476,9 @@ inline constexpr const char* kDefaultHtxWeights = "htx_lite_fast.safetensors";
 struct DynamicSourceOptions {
   std::filesystem::path weights{};  ///< htx weights; empty = find_default_weights()
   HtxSourceParams htx{};            ///< htx parameters (detect_every, min_score, ...)
-  MotionGateParams gate{};          ///< "A&B" / "A&&B" (the latter sets gate.evidence)
+  GeometricMotionParams geometric{};  ///< geometric parameters
+  FileSourceParams file{};          ///< file:PATH parameters
+  MotionGateParams gate{};          ///< the gate of SlamConfig::gate (config.hpp)
 };
 
 /// Builds the source named by a `--dynamic` option value: "none", "file:PATH", "geometric"
