@@ -5,7 +5,8 @@
 # examples/include_in_slam/ and examples/cluster_bench/ against it with find_package(ds3d), then
 # runs them (include_in_slam exits non-zero when the person's keypoints are not removed;
 # cluster_bench runs its smallest cases once). Also checks that a header-only install (no SLAM)
-# serves ds3d::core, builds and runs include_in_slam against it (no OpenCV, no Ceres), and that
+# serves ds3d::core and ds3d::htx (the shipped detector, no OpenCV, no Ceres), builds and runs
+# include_in_slam against it, and that
 # asking it for COMPONENTS slam fails cleanly at configure time.
 # DS3D_EXTRA_CONSUMERS="dir ..." adds more examples/<dir> projects to the build loop.
 set -euo pipefail
@@ -24,6 +25,7 @@ for example in consumer include_in_slam cluster_bench ${DS3D_EXTRA_CONSUMERS:-};
 done
 "${tmp}/build-consumer/app"
 "${tmp}/build-consumer/app_core"
+"${tmp}/build-consumer/app_htx" "${tmp}/prefix/share/ds3d/models/htx_lite_fast.safetensors"
 "${tmp}/build-include_in_slam/include_in_slam"
 "${tmp}/build-cluster_bench/cluster_bench" '--benchmark_filter=/n:(1000|100)(/|$)' \
   --benchmark_min_time=0.01
@@ -36,6 +38,13 @@ cmake -S examples/consumer -B "${tmp}/build-core" -G Ninja -DCMAKE_PREFIX_PATH="
   -DCONSUMER_CORE_ONLY=ON >/dev/null
 cmake --build "${tmp}/build-core" >/dev/null
 "${tmp}/build-core/app_core"
+# ds3d::htx from the same install: the shipped detector with Eigen only.
+"${tmp}/build-core/app_htx" "${tmp}/core-prefix/share/ds3d/models/htx_lite_fast.safetensors"
+if ldd "${tmp}/build-core/app_htx" | grep -Eq 'opencv|ceres'; then
+  echo "consumer: FAILED: app_htx (ds3d::htx) links OpenCV or Ceres" >&2
+  exit 1
+fi
+echo "consumer: ds3d::htx runs the shipped detector without OpenCV or Ceres"
 cmake -S examples/include_in_slam -B "${tmp}/build-core-slam-example" -G Ninja \
   -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="${tmp}/core-prefix" >/dev/null
 cmake --build "${tmp}/build-core-slam-example" >/dev/null
