@@ -172,7 +172,7 @@ class SparseDetector {
   /// The configuration read from the weights file.
   [[nodiscard]] const DetectorConfig& config() const noexcept { return config_; }
 
-  struct Weights;  ///< internal, defined in src/htx/sparse_detector.cpp
+  struct Weights;  ///< internal, defined in src/htx/sparse_detector_impl.hpp
 
  private:
   SparseDetector(DetectorConfig config, std::shared_ptr<const Weights> w)
