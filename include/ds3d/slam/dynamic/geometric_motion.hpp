@@ -205,6 +205,19 @@ class GeometricMotionSource final : public DynamicObjectSource {
     Eigen::Vector3d lo_world, hi_world;         // its axis-aligned hull in the world frame
     std::size_t last_seen = 0;
   };
+  struct Work;  // one frame's intermediate results (src/slam/dynamic/geometric_motion_impl.hpp)
+  // The stages of detect(), in order (geometric_motion.cpp; the dense warp in geometric_warp.cpp).
+  void extract_frame(const FrameInput& frame, const PinholeCamera& camera, Work& work);
+  void select_reference(Work& work);
+  void match_and_pose(Work& work);
+  [[nodiscard]] double pixel_noise(const Work& work) const;
+  void test_keypoints(Work& work);
+  void cluster_keypoints(const PinholeCamera& camera, Work& work);
+  void warp_depth(const FrameInput& frame, const PinholeCamera& camera, Work& work);
+  void warp_candidates(const PinholeCamera& camera, Work& work);
+  void merge_candidates(Work& work);
+  void confirm_objects(std::size_t now, Work& work);
+  void report_objects(const Work& work, DynamicObjects& out) const;
   GeometricMotionParams params_;
   OrbExtractor extractor_;
   std::deque<Past> history_;

@@ -1,0 +1,286 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// Private to SlamFrontend: the map's types and SlamFrontend::Impl, shared by its sources.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <ctime>
+#include <future>
+#include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "ds3d/slam/slam_frontend.hpp"
+
+namespace ds3d::slam::detail {
+
+using Clock = std::chrono::steady_clock;
+inline double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+// CPU time of the calling thread [ms] (POSIX).
+inline double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+inline constexpr int kThHigh = 100;  // ORB-SLAM2's ORBmatcher::TH_HIGH
+inline constexpr int kThLow = 50;    // ORB-SLAM2's ORBmatcher::TH_LOW
+inline constexpr int kGridCols = 64;
+inline constexpr int kGridRows = 48;
+
+using Descriptor = std::array<std::uint8_t, 32>;
+
+// Observations of a map point that choose its descriptor (update_point_descriptor).
+inline constexpr std::size_t kDescriptorWindow = 32;
+
+inline Descriptor row_descriptor(const cv::Mat& d, int i) {
+  Descriptor out{};
+  std::memcpy(out.data(), d.ptr<std::uint8_t>(i), 32);
+  return out;
+}
+
+// Features of a frame or keyframe bucketed on a coarse grid for radius queries.
+class FeatureGrid {
+ public:
+  void build(const std::vector<Eigen::Vector2f>& uv, int width, int height) {
+    width_ = width;
+    height_ = height;
+    cells_.assign(static_cast<std::size_t>(kGridCols * kGridRows), {});
+    for (std::size_t i = 0; i < uv.size(); ++i) {
+      const int c = cell_x(uv[i].x());
+      const int r = cell_y(uv[i].y());
+      cells_[static_cast<std::size_t>(r * kGridCols + c)].push_back(static_cast<int>(i));
+    }
+  }
+  template <class F>
+  void for_each_in(double u, double v, double radius, F&& f) const {
+    const int c0 = cell_x(u - radius);
+    const int c1 = cell_x(u + radius);
+    const int r0 = cell_y(v - radius);
+    const int r1 = cell_y(v + radius);
+    for (int r = r0; r <= r1; ++r) {
+      for (int c = c0; c <= c1; ++c) {
+        for (const int i : cells_[static_cast<std::size_t>(r * kGridCols + c)]) f(i);
+      }
+    }
+  }
+
+ private:
+  [[nodiscard]] int cell_x(double u) const {
+    return std::clamp(static_cast<int>(std::floor(u * kGridCols / width_)), 0, kGridCols - 1);
+  }
+  [[nodiscard]] int cell_y(double v) const {
+    return std::clamp(static_cast<int>(std::floor(v * kGridRows / height_)), 0, kGridRows - 1);
+  }
+  int width_ = 1;
+  int height_ = 1;
+  std::vector<std::vector<int>> cells_;
+};
+
+struct MapPoint {
+  Eigen::Vector3d pos = Eigen::Vector3d::Zero();
+  Descriptor desc{};
+  std::vector<std::pair<int, int>> obs;  // (keyframe id, keypoint index)
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  double max_dist = 0;
+  double min_dist = 0;
+  int ref_kf = -1;
+  int first_kf = -1;
+  int visible = 1;
+  int found = 1;
+  bool bad = false;
+  std::size_t last_frame_seen = std::numeric_limits<std::size_t>::max();
+  std::size_t local_stamp = std::numeric_limits<std::size_t>::max();
+};
+
+// Shared per-keypoint data of frames and keyframes.
+struct FrameData {
+  float close_depth = 3.0F;
+  std::vector<Eigen::Vector2f> uv;
+  std::vector<float> depth;
+  std::vector<int> octave;
+  cv::Mat desc;
+  std::vector<int> points;  // map point id or -1
+  FeatureGrid grid;
+  [[nodiscard]] std::size_t size() const { return uv.size(); }
+  [[nodiscard]] bool is_close(std::size_t i) const {
+    return depth[i] > 0 && depth[i] <= close_depth;
+  }
+  [[nodiscard]] double u_right(std::size_t i, double bf) const {
+    return depth[i] > 0 ? uv[i].x() - bf / depth[i] : -1.0;
+  }
+};
+
+struct Keyframe {
+  int id = 0;
+  std::size_t frame_index = 0;
+  double timestamp = 0;
+  Eigen::Isometry3d T_cw = Eigen::Isometry3d::Identity();
+  FrameData data;
+  std::map<int, int> covis;  // keyframe id -> shared points
+  bool bad = false;          // removed by keyframe culling (its data is released)
+  [[nodiscard]] Eigen::Vector3d center() const { return T_cw.inverse().translation(); }
+};
+
+// A local BA launched at a keyframe: input snapshot and (future) result.
+struct BaJob {
+  std::size_t due_frame = 0;
+  std::vector<int> kf_ids;
+  std::vector<int> point_ids;
+  std::vector<BaObservation> observations;
+  std::future<std::pair<LocalBaResult, double>> result;
+  int cull_kf = -1;  // local BA of this keyframe: keyframe culling runs after it is applied
+};
+
+}  // namespace ds3d::slam::detail
+
+namespace ds3d::slam {
+
+// The front-end's sources use the short names.
+using detail::BaJob;
+using detail::Clock;
+using detail::Descriptor;
+using detail::FeatureGrid;
+using detail::FrameData;
+using detail::kDescriptorWindow;
+using detail::Keyframe;
+using detail::kThHigh;
+using detail::kThLow;
+using detail::MapPoint;
+using detail::ms_since;
+using detail::row_descriptor;
+using detail::thread_cpu_ms;
+
+struct SlamFrontend::Impl {
+  FrontendConfig cfg;
+  OrbExtractor extractor;
+  StereoIntrinsics k;
+  std::vector<double> scale;       // per level
+  std::vector<double> inv_sigma2;  // per level
+  std::shared_ptr<DynamicObjectSource> source;
+  std::shared_ptr<DynamicFeatureMasker> masker;
+
+  std::vector<Keyframe> keyframes;  // indexed by id; culled ones stay (bad = true)
+  std::size_t live_keyframes = 0;
+  std::vector<CulledKeyframe> culled;
+  std::vector<MapPoint> points;
+  std::vector<int> recent_points;
+
+  // Tracking state.
+  std::size_t frame_counter = 0;  // frames processed by track_prepared
+  bool initialized = false;
+  bool have_last = false;
+  double last_timestamp = -std::numeric_limits<double>::infinity();
+  FrameData last;
+  Eigen::Isometry3d last_T_cw = Eigen::Isometry3d::Identity();
+  bool last_tracked = false;
+  bool velocity_valid = false;
+  Eigen::Isometry3d velocity = Eigen::Isometry3d::Identity();
+  int ref_kf = -1;
+  int last_kf_frame = 0;  // frame_counter at the last keyframe
+  int lost_count = 0;
+  bool just_relocalized = false;
+
+  // Trajectory: per frame, pose relative to its reference keyframe.
+  struct FrameRecord {
+    std::size_t index;
+    double timestamp;
+    int ref_kf;
+    Eigen::Isometry3d T_c_ref;
+    Eigen::Isometry3d T_cw_online;
+    bool tracked;
+    bool keyframe = false;
+    std::vector<std::pair<int, Observation>> matches;  // kept only for refine_frame_poses
+  };
+  std::vector<FrameRecord> records;
+
+  std::optional<BaJob> ba_job;
+  std::size_t ba_count = 0;
+  double ba_ms = 0;
+  double refine_ms = 0;  // thread CPU of finish()'s refinement
+
+  Impl(FrontendConfig c, std::shared_ptr<DynamicObjectSource> s,
+       std::shared_ptr<DynamicFeatureMasker> m);
+  ~Impl();
+
+  // ---- helpers (inline: the matching and mapping loops of several files call them) --------
+  // ORB-SLAM2 counts an observation with depth twice (it constrains like a stereo pair).
+  [[nodiscard]] int obs_weight(const MapPoint& p) const {
+    int n = 0;
+    for (const auto& [kf, idx] : p.obs) {
+      n += keyframes[static_cast<std::size_t>(kf)].data.depth[static_cast<std::size_t>(idx)] > 0
+               ? 2
+               : 1;
+    }
+    return n;
+  }
+
+  [[nodiscard]] Observation observation(const FrameData& f, std::size_t i) const {
+    Observation o;
+    o.pixel = f.uv[i].cast<double>();
+    o.u_right = f.u_right(i, k.bf);
+    o.has_depth = f.depth[i] > 0;
+    o.inv_sigma2 = inv_sigma2[static_cast<std::size_t>(f.octave[i])];
+    return o;
+  }
+
+  [[nodiscard]] int predict_level(const MapPoint& p, double dist) const {
+    if (dist <= 0) return 0;
+    const int l =
+        static_cast<int>(std::ceil(std::log(p.max_dist / dist) / std::log(cfg.orb.scale_factor)));
+    return std::clamp(l, 0, cfg.orb.num_levels - 1);
+  }
+
+  // ---- tracking.cpp: frame preparation, matching, pose optimisation, tracking, relocalisation
+  FrameData make_frame_data(const PreparedFrame& pf) const;
+  int search_by_projection(FrameData& f, const Eigen::Isometry3d& T_cw,
+                           const std::vector<int>& candidates, double th, bool local_map,
+                           std::size_t stamp);
+  int match_keyframe(const Keyframe& kf, FrameData& f) const;
+  int optimize_frame(FrameData& f, Eigen::Isometry3d& T_cw) const;
+  bool pnp_ransac(const FrameData& f, Eigen::Isometry3d& T_cw) const;
+  bool track_motion_model(FrameData& f, Eigen::Isometry3d& T_cw);
+  bool track_keyframe(const Keyframe& kf, FrameData& f, Eigen::Isometry3d& T_cw, int min_inliers);
+  bool relocalize(FrameData& f, Eigen::Isometry3d& T_cw);
+  std::vector<int> local_keyframes(const FrameData& f);
+  int track_local_map(FrameData& f, Eigen::Isometry3d& T_cw);
+  TrackResult track(PreparedFrame pf);
+
+  // ---- mapping.cpp: map points, fusion, local BA scheduling and applying
+  void update_point_geometry(MapPoint& p);
+  void update_point_descriptor(MapPoint& p);
+  void replace_point(int from, int into);
+  int fuse_into(int kf_id, std::vector<int> cands);  // by value: fusion edits the source lists
+  void search_in_neighbors(int kf_id);
+  void cull_recent_points(int current_kf);
+  void erase_point(int pid);
+  void schedule_local_ba(int kf_id);
+  void launch_ba(const std::vector<int>& local, const std::vector<int>& fixed_ids,
+                 const std::vector<int>& pts, bool async, const LocalBaParams& params);
+  void apply_ba_if_due(bool force);
+
+  // ---- keyframes.cpp: keyframe decision, insertion, covisibility, culling
+  bool need_keyframe(const FrameData& f, int inliers) const;
+  int add_keyframe(const FrameData& f, const Eigen::Isometry3d& T_cw, const FrameInput& in);
+  void update_connections(Keyframe& K);
+  [[nodiscard]] std::vector<int> best_covisible(int kf_id, int n) const;
+  [[nodiscard]] std::pair<int, int> redundancy(int id) const;
+  void cull_keyframes(int current);
+  void remove_keyframe(int id, int close, int redundant);
+
+  // ---- slam_frontend.cpp: finish()'s refinement
+  void refine_frame_poses(const PoseOptimizerParams& params);
+  void refine_points_from_frames();
+};
+
+}  // namespace ds3d::slam
