@@ -46,8 +46,8 @@ constexpr const char* kUsage =
     "                            file:PATH]\n"
     "                 [--weights PATH]\n"
     "                 [--detect-every K] [--min-score S] [--hold-frames K] [--floor]\n"
-    "                 [--no-segment] [--htx-draws N] [--segment-frames K]\n"
-    "                 [--segment-smoothing W] [--segment-boxes-only] [--max-frames N]\n"
+    "                 [--no-segment] [--segment-frames K]\n"
+    "                 [--segment-boxes-only] [--max-frames N]\n"
     "                 [--stats "
     "stats.json] "
     "[--viz OUT_DIR]\n"
@@ -75,15 +75,11 @@ constexpr const char* kUsage =
     "  (HtxSourceParams::report_floor; off by default, see docs/dynamic.md: better precision on\n"
     "  synthetic scenes, fewer person keypoints removed on recorded ones). --no-segment: do\n"
     "  not confirm the detector's boxes with its part head's foreground points\n"
-    "  (HtxSourceParams::segment, on by default). --htx-draws N: run the\n"
-    "  network on N draws of its input per frame, average the part head over them and add the\n"
-    "  boxes the later draws find (default 1; each draw costs one network pass).\n"
+    "  (HtxSourceParams::segment, on by default).\n"
     "  --segment-frames K: average each point's part-head logit with its nearest point's (within\n"
-    "  one voxel) in each of the last K frames (default 10, 0 = off). --segment-smoothing W:\n"
-    "  weight of the spatial mean-field smoothing of the part head's labels over neighbouring\n"
-    "  points (default 0 = off). --segment-boxes-only: the part head decides inside the boxes\n"
-    "  only (by default it also marks the keypoints it sees on people outside them). All four:\n"
-    "  docs/dynamic.md.\n"
+    "  one voxel) in each of the last K frames (default 10, 0 = off). --segment-boxes-only: the\n"
+    "  part head decides inside the boxes only (by default it also marks the keypoints it sees on\n"
+    "  people outside them). Both: docs/dynamic.md.\n"
     "--viz: one JPEG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
     "(blue).\n"
     "--fusion: merge duplicate map points with covisible keyframes (ORB-SLAM2's Fuse; off by\n"
@@ -110,9 +106,7 @@ struct Args {
   int detect_every = 1;
   float min_score = -1.0F;  // < 0 = the HtxSourceParams default
   int hold_frames = -1;     // < 0 = the HtxSourceParams default
-  int draws = 1;
-  int segment_frames = -1;          // < 0 = the HtxSourceParams default
-  float segment_smoothing = -1.0F;  // < 0 = the HtxSourceParams default
+  int segment_frames = -1;  // < 0 = the HtxSourceParams default
   bool floor = false;
   bool no_segment = false;
   bool segment_boxes_only = false;
@@ -200,13 +194,8 @@ Args parse(int argc, char** argv) {
       a.min_score = parse_float(s, value(), 0.0F, 1.0F, "a number in [0, 1]");
     } else if (s == "--hold-frames") {
       a.hold_frames = static_cast<int>(parse_int(s, value(), 0));
-    } else if (s == "--htx-draws") {
-      a.draws = static_cast<int>(parse_int(s, value(), 1));
     } else if (s == "--segment-frames") {
       a.segment_frames = static_cast<int>(parse_int(s, value(), 0));
-    } else if (s == "--segment-smoothing") {
-      a.segment_smoothing =
-          parse_float(s, value(), 0.0F, std::numeric_limits<float>::max(), "a finite number >= 0");
     } else if (s == "--floor") {
       a.floor = true;
     } else if (s == "--no-segment") {
@@ -259,19 +248,17 @@ Args parse(int argc, char** argv) {
   a.dataset = pos[0];
   const bool uses_htx =
       a.dynamic.rfind("file:", 0) != 0 && a.dynamic.find("htx") != std::string::npos;
-  if (!uses_htx && (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor ||
-                    a.no_segment || a.hold_frames >= 0 || a.draws != 1 || a.segment_frames >= 0 ||
-                    a.segment_smoothing >= 0.0F || a.segment_boxes_only)) {
+  if (!uses_htx &&
+      (!a.weights.empty() || a.detect_every != 1 || a.min_score >= 0.0F || a.floor ||
+       a.no_segment || a.hold_frames >= 0 || a.segment_frames >= 0 || a.segment_boxes_only)) {
     usage_error(
         "--weights, --detect-every, --min-score, --hold-frames, --floor, --no-segment, "
-        "--htx-draws, --segment-frames, --segment-smoothing and --segment-boxes-only need "
-        "--dynamic htx or htx+...");
+        "--segment-frames and --segment-boxes-only need --dynamic htx or htx+...");
   }
-  if (a.no_segment && (a.segment_frames > 0 || a.draws != 1 || a.segment_smoothing > 0.0F ||
-                       a.segment_boxes_only)) {
+  if (a.no_segment && (a.segment_frames > 0 || a.segment_boxes_only)) {
     usage_error(
-        "--segment-frames, --htx-draws, --segment-smoothing and --segment-boxes-only act on the "
-        "part head's segmentation: not with --no-segment");
+        "--segment-frames and --segment-boxes-only act on the part head's segmentation: not "
+        "with --no-segment");
   }
   if (a.hold_frames >= 0 && a.dynamic.find("&&") != std::string::npos) {
     usage_error("--hold-frames has no effect with --dynamic A&&geometric (its tracks hold boxes)");
@@ -362,9 +349,7 @@ int run(const Args& a) {
   sopt.htx.detect_every = a.detect_every;
   if (a.min_score >= 0.0F) sopt.htx.min_score = a.min_score;
   if (a.hold_frames >= 0) sopt.htx.hold_frames = a.hold_frames;
-  sopt.htx.draws = a.draws;
   if (a.segment_frames >= 0) sopt.htx.segment_frames = a.segment_frames;
-  if (a.segment_smoothing >= 0.0F) sopt.htx.segment_smoothing = a.segment_smoothing;
   sopt.htx.report_floor = a.floor;
   sopt.htx.segment = !a.no_segment;
   sopt.htx.segment_outside_boxes = !a.segment_boxes_only;
