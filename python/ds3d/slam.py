@@ -10,7 +10,7 @@ __all__ = ["Slam", "SlamConfig", "run_slam"]
 
 def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
              dynamic="none", weights=None, detect_every=1, min_score=None, hold_frames=None,
-             draws=1, segment_frames=None, segment_smoothing=None, segment_outside_boxes=True):
+             segment_frames=None, segment_outside_boxes=True):
     """Runs the SLAM pipeline on a TUM-layout folder (rgb.txt, depth.txt).
 
     Args:
@@ -33,13 +33,8 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
         hold_frames: frames an HTx box the detector then misses is held while its part head
             still sees foreground in it (>= 0; None: the library default, 10; ignored under
             ``"A&&geometric"``, whose tracks hold the boxes).
-        draws: HTx network passes per frame on different draws of its input (>= 1, default 1):
-            the part head is averaged over them and boxes only later draws find are added.
         segment_frames: earlier frames whose part-head logits are averaged into each point's
             (nearest point within one voxel; >= 0; None: the library default, 10; 0 = off).
-        segment_smoothing: weight of the mean-field smoothing of the part head's labels over
-            neighbouring points of the frame (finite, >= 0; None: the library default, 0 =
-            off).
         segment_outside_boxes: the part head also marks the keypoints it sees on people outside
             the HTx boxes (default True; False: it decides inside the boxes only).
 
@@ -53,13 +48,10 @@ def run_slam(dataset_dir, camera=None, max_frames=0, threaded=True, config=None,
         raise ValueError(f"ds3d.run_slam: max_frames must be >= 0 (got {max_frames})")
     if int(detect_every) < 1:
         raise ValueError(f"ds3d.run_slam: detect_every must be >= 1 (got {detect_every})")
-    if int(draws) < 1:
-        raise ValueError(f"ds3d.run_slam: draws must be >= 1 (got {draws})")
     return _run_slam(os.fspath(dataset_dir), "" if camera is None else os.fspath(camera),
                      int(max_frames), bool(threaded), config, str(dynamic),
                      "" if weights is None else os.fspath(weights), int(detect_every),
                      None if min_score is None else float(min_score),
-                     None if hold_frames is None else int(hold_frames), int(draws),
+                     None if hold_frames is None else int(hold_frames),
                      None if segment_frames is None else int(segment_frames),
-                     None if segment_smoothing is None else float(segment_smoothing),
                      bool(segment_outside_boxes))

@@ -191,12 +191,10 @@ void bind_slam_frontend(py::module_& m) {
       [](const std::string& dataset_dir, const std::string& camera, std::size_t max_frames,
          bool threaded, std::optional<FrontendConfig> config, const std::string& dynamic,
          const std::string& weights, int detect_every, std::optional<float> min_score,
-         std::optional<int> hold_frames, int draws, std::optional<int> segment_frames,
-         std::optional<float> segment_smoothing, bool segment_outside_boxes) {
+         std::optional<int> hold_frames, std::optional<int> segment_frames,
+         bool segment_outside_boxes) {
         ds3d::slam::DynamicSourceOptions sopt;
         sopt.htx.segment_outside_boxes = segment_outside_boxes;
-        if (segment_smoothing) sopt.htx.segment_smoothing = *segment_smoothing;
-        sopt.htx.draws = draws;
         if (segment_frames) sopt.htx.segment_frames = *segment_frames;
         sopt.weights = weights;
         sopt.htx.detect_every = detect_every;
@@ -225,7 +223,6 @@ void bind_slam_frontend(py::module_& m) {
       py::arg("dataset_dir"), py::arg("camera") = "", py::arg("max_frames") = 0,
       py::arg("threaded") = true, py::arg("config") = py::none(), py::arg("dynamic") = "none",
       py::arg("weights") = "", py::arg("detect_every") = 1, py::arg("min_score") = py::none(),
-      py::arg("hold_frames") = py::none(), py::arg("draws") = 1,
-      py::arg("segment_frames") = py::none(), py::arg("segment_smoothing") = py::none(),
+      py::arg("hold_frames") = py::none(), py::arg("segment_frames") = py::none(),
       py::arg("segment_outside_boxes") = true, "Internal: see ds3d.run_slam.");
 }
