@@ -64,11 +64,11 @@ void add_segmented(ds3d::slam::DynamicObjects& o, const cv::Mat& m, const cv::Ma
   }
   o.boxes_3d.push_back(c);
   o.boxes_3d_margin.push_back(0.15F);
-  o.boxes_3d_segmented.push_back(1);
-  const Eigen::Index n = o.foreground_points.rows();
-  o.foreground_points.conservativeResize(n + static_cast<Eigen::Index>(pts.size()), 3);
+  o.segmentation.boxes_3d_segmented.push_back(1);
+  const Eigen::Index n = o.segmentation.foreground_points.rows();
+  o.segmentation.foreground_points.conservativeResize(n + static_cast<Eigen::Index>(pts.size()), 3);
   for (std::size_t k = 0; k < pts.size(); ++k) {
-    o.foreground_points.row(n + static_cast<Eigen::Index>(k)) = pts[k].transpose();
+    o.segmentation.foreground_points.row(n + static_cast<Eigen::Index>(k)) = pts[k].transpose();
   }
 }
 
@@ -105,12 +105,13 @@ const std::vector<Prepared>& prepared() {
           bg.push_back(o.camera.back_project(x, y, d / o.camera.depth_scale).cast<float>());
         }
       }
-      q.segmented_bg.background_points.resize(static_cast<Eigen::Index>(bg.size()), 3);
+      q.segmented_bg.segmentation.background_points.resize(static_cast<Eigen::Index>(bg.size()), 3);
       for (std::size_t k = 0; k < bg.size(); ++k) {
-        q.segmented_bg.background_points.row(static_cast<Eigen::Index>(k)) = bg[k].transpose();
+        q.segmented_bg.segmentation.background_points.row(static_cast<Eigen::Index>(k)) =
+            bg[k].transpose();
       }
       q.segmented_all = q.segmented_bg;
-      q.segmented_all.segment_outside_boxes = true;
+      q.segmented_all.segmentation.segment_outside_boxes = true;
       out.push_back(std::move(q));
     }
     return out;
@@ -155,7 +156,7 @@ void BM_HdbscanMaskerMaskSegmented(benchmark::State& state) {
       const auto m = masker.mask(f.input, cam, f.features, objects);
       dynamic += std::count(m.begin(), m.end(), std::uint8_t{1});
       vetoed += static_cast<std::int64_t>(masker.last_vetoed());
-      fg += f.segmented.foreground_points.rows();
+      fg += f.segmented.segmentation.foreground_points.rows();
       benchmark::DoNotOptimize(m.data());
     }
   }
@@ -183,33 +184,5 @@ void BM_ImageBoxes3d(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations() * 4);
 }
 BENCHMARK(BM_ImageBoxes3d);
-
-// smooth_segmentation (HtxSourceParams::segment_smoothing) on 4,096 points like the detector's
-// draw: a 64 x 64 grid at 0.065 m (the drawn points' typical spacing) on a gently curved
-// surface, logits of a disc of foreground plus uniform noise; kernel 0.1 m (the voxel leaf),
-// weight 1, 5 steps. Items = points.
-void BM_SmoothSegmentation(benchmark::State& state) {
-  ds3d::Points3f p(4096, 3);
-  std::vector<float> lg(4096);
-  std::uint32_t h = 12345U;
-  const auto noise = [&h] {
-    h = h * 1664525U + 1013904223U;
-    return static_cast<float>(h >> 8) / static_cast<float>(1U << 24) - 0.5F;
-  };
-  for (int i = 0; i < 64; ++i) {
-    for (int j = 0; j < 64; ++j) {
-      const float x = 0.065F * static_cast<float>(i - 32);
-      const float y = 0.065F * static_cast<float>(j - 32);
-      p.row(i * 64 + j) << x, y, 3.0F + 0.1F * (x * x + y * y);
-      lg[static_cast<std::size_t>(i * 64 + j)] =
-          (x * x + y * y < 0.5F ? 1.5F : -1.5F) + 4.0F * noise();
-    }
-  }
-  for (auto _ : state) {
-    benchmark::DoNotOptimize(ds3d::slam::smooth_segmentation(p, lg, 0.1, 1.0F).data());
-  }
-  state.SetItemsProcessed(state.iterations() * 4096);
-}
-BENCHMARK(BM_SmoothSegmentation)->Unit(benchmark::kMillisecond);
 
 }  // namespace

@@ -22,8 +22,7 @@ def test_run_slam_with_htx_and_composite(tmp_path):
         assert np.array_equal(a, b)  # deterministic, threads or not
     c = ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, min_score=0.0, hold_frames=0)
     assert c.shape == (4, 8) and np.all(np.isfinite(c))
-    d = ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, min_score=0.0, draws=2,
-                      segment_frames=0, segment_smoothing=0.0)
+    d = ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, min_score=0.0, segment_frames=0)
     assert d.shape == (4, 8) and np.all(np.isfinite(d))
     e = ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, min_score=0.0,
                       segment_outside_boxes=False)
@@ -41,12 +40,8 @@ def test_run_slam_bad_dynamic_options(tmp_path):
         ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, min_score=1.5)
     with pytest.raises(ValueError, match="hold_frames"):
         ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, hold_frames=-1)
-    with pytest.raises(ValueError, match="draws"):
-        ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, draws=0)
     with pytest.raises(ValueError, match="segment_frames"):
         ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, segment_frames=-1)
-    with pytest.raises(ValueError, match="segment_smoothing"):
-        ds3d.run_slam(tmp_path, dynamic="htx", weights=FIXTURE, segment_smoothing=-0.5)
 
 
 def test_detector_input_round_trip():

@@ -235,9 +235,9 @@ TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
   for (int v = 80; v < 480; v += 8) {
     for (int u = 250; u <= 310; u += 8) fg.push_back(cam.back_project(u, v, 1.5).cast<float>());
   }
-  obj.foreground_points.resize(static_cast<Eigen::Index>(fg.size()), 3);
+  obj.segmentation.foreground_points.resize(static_cast<Eigen::Index>(fg.size()), 3);
   for (std::size_t k = 0; k < fg.size(); ++k) {
-    obj.foreground_points.row(static_cast<Eigen::Index>(k)) = fg[k].transpose();
+    obj.segmentation.foreground_points.row(static_cast<Eigen::Index>(k)) = fg[k].transpose();
   }
   const auto on_chair_far = [&](std::size_t i) {  // more than 0.2 m (70 px) from the person
     return feats.keypoints[i].pt.x > 385.0F && feats.keypoints[i].pt.x <= 420.0F &&
@@ -257,7 +257,7 @@ TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
   EXPECT_GT(count(m0, on_chair_far).first, count(m0, on_chair_far).second / 2);
   EXPECT_EQ(plain.last_vetoed(), 0U);
 
-  obj.boxes_3d_segmented.push_back(1);
+  obj.segmentation.boxes_3d_segmented.push_back(1);
   ds3d::slam::HdbscanMasker masker;
   const auto m = masker.mask(f, cam, feats, obj);
   const auto [person_on, person_n] = count(m, on_person);
@@ -286,11 +286,11 @@ TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
     for (int u = 318; u <= 420; u += 8) bg.push_back(cam.back_project(u, v, 1.5).cast<float>());
   }
   DynamicObjects with_bg = obj;
-  with_bg.background_points.resize(static_cast<Eigen::Index>(bg.size()), 3);
+  with_bg.segmentation.background_points.resize(static_cast<Eigen::Index>(bg.size()), 3);
   for (std::size_t k = 0; k < bg.size(); ++k) {
-    with_bg.background_points.row(static_cast<Eigen::Index>(k)) = bg[k].transpose();
+    with_bg.segmentation.background_points.row(static_cast<Eigen::Index>(k)) = bg[k].transpose();
   }
-  with_bg.background_points.row(0).setConstant(std::nanf(""));  // ignored
+  with_bg.segmentation.background_points.row(0).setConstant(std::nanf(""));  // ignored
   ds3d::slam::HdbscanMasker nn;
   const auto m_nn = nn.mask(f, cam, feats, with_bg);
   EXPECT_EQ(count(m_nn, on_person).first, person_n);
@@ -308,17 +308,17 @@ TEST(HdbscanMasker, SegmentedBoxesKeepOnlyKeypointsOnTheForeground) {
 
   // Flagged with no foreground at all: nothing in the box stays dynamic.
   DynamicObjects none = obj;
-  none.foreground_points.resize(0, 3);
+  none.segmentation.foreground_points.resize(0, 3);
   ds3d::slam::HdbscanMasker empty_fg;
   const auto m3 = empty_fg.mask(f, cam, feats, none);
   EXPECT_EQ(std::count(m3.begin(), m3.end(), std::uint8_t{1}), 0);
 
   // Malformed: one flag per 3-D box, a positive finite radius.
   DynamicObjects bad = obj;
-  bad.boxes_3d_segmented.push_back(1);
+  bad.segmentation.boxes_3d_segmented.push_back(1);
   EXPECT_THROW((void)masker.mask(f, cam, feats, bad), ds3d::InvalidArgument);
   bad = obj;
-  bad.foreground_radius = std::nanf("");
+  bad.segmentation.foreground_radius = std::nanf("");
   try {
     (void)masker.mask(f, cam, feats, bad);
     ADD_FAILURE() << "no exception";
@@ -372,8 +372,8 @@ TEST(HdbscanMasker, SegmentationDecidesInsideGatedBoxesAndColoursHoles) {
   }
   obj.boxes_3d.push_back(c);
   obj.boxes_3d_margin.push_back(0.1F);
-  obj.foreground_points = slab_points(cam, 250, 329, 80, 295, 1.5);
-  obj.background_points = slab_points(cam, 200, 379, 300, 479, 1.0);
+  obj.segmentation.foreground_points = slab_points(cam, 250, 329, 80, 295, 1.5);
+  obj.segmentation.background_points = slab_points(cam, 200, 379, 300, 479, 1.0);
   const auto region = [&](int u0, int u1, int v0, int v1) {
     return in_region(feats, u0, u1, v0, v1);
   };
@@ -404,7 +404,7 @@ TEST(HdbscanMasker, SegmentationDecidesInsideGatedBoxesAndColoursHoles) {
   }
 
   // Segmented: the person's gated keypoints become dynamic, the desk's static.
-  obj.boxes_3d_segmented.push_back(1);
+  obj.segmentation.boxes_3d_segmented.push_back(1);
   ds3d::slam::HdbscanMasker masker;
   const auto m = masker.mask(f, cam, feats, obj);
   EXPECT_EQ(count(m, person).first, person_n);
@@ -451,9 +451,9 @@ TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFl
   }
   obj.boxes_3d.push_back(c);
   obj.boxes_3d_margin.push_back(0.1F);
-  obj.boxes_3d_segmented.push_back(1);
-  obj.foreground_points = slab_points(cam, 250, 329, 80, 449, 2.0);
-  obj.background_points = slab_points(cam, 0, 639, 0, 300, 5.0);  // the wall
+  obj.segmentation.boxes_3d_segmented.push_back(1);
+  obj.segmentation.foreground_points = slab_points(cam, 250, 329, 80, 449, 2.0);
+  obj.segmentation.background_points = slab_points(cam, 0, 639, 0, 300, 5.0);  // the wall
   const auto region = [&](int u0, int u1, int v0, int v1) {
     return in_region(feats, u0, u1, v0, v1);
   };
@@ -480,7 +480,7 @@ TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFl
 
   // Whole frame, without the removed plane: the legs are taken, and so is the floor at the feet
   // (next to the foot points, no background points of its own).
-  obj.segment_outside_boxes = true;
+  obj.segmentation.segment_outside_boxes = true;
   ds3d::slam::HdbscanMasker no_plane;
   const auto m1 = no_plane.mask(f, cam, feats, obj);
   EXPECT_EQ(count(m1, upper).first, upper_n);
@@ -490,7 +490,8 @@ TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFl
   EXPECT_GE(no_plane.last_added(), static_cast<std::size_t>(legs_n));
 
   // With the plane the source removed (any normal length): the floor stays static.
-  obj.segment_plane = Eigen::Vector4f(0.0F, 2.0F, 0.0F, static_cast<float>(-2.0 * kFloorY));
+  obj.segmentation.segment_plane =
+      Eigen::Vector4f(0.0F, 2.0F, 0.0F, static_cast<float>(-2.0 * kFloorY));
   ds3d::slam::HdbscanMasker masker;
   const auto m2 = masker.mask(f, cam, feats, obj);
   EXPECT_EQ(count(m2, upper).first, upper_n);
@@ -522,7 +523,7 @@ TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFl
 
   // No segmented box in the frame: the flag alone marks nothing.
   DynamicObjects unflagged = obj;
-  unflagged.boxes_3d_segmented.assign(1, 0);
+  unflagged.segmentation.boxes_3d_segmented.assign(1, 0);
   ds3d::slam::HdbscanMasker unseg;
   const auto m4 = unseg.mask(f, cam, feats, unflagged);
   EXPECT_EQ(count(m4, legs).first, 0);
@@ -531,7 +532,7 @@ TEST(HdbscanMasker, WholeFrameSegmentationTakesBodyPartsOutsideTheBoxButNotTheFl
   for (const Eigen::Vector4f& bad_plane : {Eigen::Vector4f(0.0F, 0.0F, 0.0F, 1.0F),
                                            Eigen::Vector4f(0.0F, std::nanf(""), 0.0F, 1.0F)}) {
     DynamicObjects bad = obj;
-    bad.segment_plane = bad_plane;
+    bad.segmentation.segment_plane = bad_plane;
     try {
       (void)masker.mask(f, cam, feats, bad);
       ADD_FAILURE() << "no exception";
@@ -550,7 +551,7 @@ TEST(KeepAnchoredForeground, KeepsWhatIsConnectedToABoxAndMovesTheRest) {
     c.row(i) << ((i & 1) ? 0.3F : -0.3F), ((i & 2) ? 0.5F : -0.5F), ((i & 4) ? 2.2F : 1.8F);
   }
   o.boxes_3d.push_back(c);
-  o.foreground_radius = 0.2F;
+  o.segmentation.foreground_radius = 0.2F;
   std::vector<Eigen::Vector3f> pts;
   for (int k = 0; k < 5; ++k)
     pts.emplace_back(0.0F, -0.4F + 0.2F * static_cast<float>(k), 2.0F);  // inside
@@ -559,31 +560,38 @@ TEST(KeepAnchoredForeground, KeepsWhatIsConnectedToABoxAndMovesTheRest) {
   pts.emplace_back(2.0F, 0.0F, 3.0F);  // an isolated patch far away
   pts.emplace_back(2.1F, 0.0F, 3.0F);
   pts.emplace_back(0.0F, 1.65F, 2.0F);  // 0.35 m beyond the chain's end: not reached
-  o.foreground_points.resize(static_cast<Eigen::Index>(pts.size()) + 1, 3);
+  o.segmentation.foreground_points.resize(static_cast<Eigen::Index>(pts.size()) + 1, 3);
   for (std::size_t k = 0; k < pts.size(); ++k) {
-    o.foreground_points.row(static_cast<Eigen::Index>(k)) = pts[k].transpose();
+    o.segmentation.foreground_points.row(static_cast<Eigen::Index>(k)) = pts[k].transpose();
   }
-  o.foreground_points.row(static_cast<Eigen::Index>(pts.size())).setConstant(std::nanf(""));
-  o.background_points = Points3f::Constant(2, 3, 5.0F);
+  o.segmentation.foreground_points.row(static_cast<Eigen::Index>(pts.size()))
+      .setConstant(std::nanf(""));
+  o.segmentation.background_points = Points3f::Constant(2, 3, 5.0F);
   DynamicObjects copy = o;
   EXPECT_EQ(ds3d::slam::keep_anchored_foreground(copy, 0.1F), 3U);
-  ASSERT_EQ(copy.foreground_points.rows(), 12);  // 5 inside + 6 chained + the NaN row
+  ASSERT_EQ(copy.segmentation.foreground_points.rows(), 12);  // 5 inside + 6 chained + the NaN row
   for (Eigen::Index r = 0; r < 11; ++r) {
-    EXPECT_TRUE(copy.foreground_points.row(r).isApprox(o.foreground_points.row(r))) << r;
+    EXPECT_TRUE(copy.segmentation.foreground_points.row(r).isApprox(
+        o.segmentation.foreground_points.row(r)))
+        << r;
   }
-  EXPECT_FALSE(copy.foreground_points.row(11).allFinite());
-  ASSERT_EQ(copy.background_points.rows(), 5);  // the two old rows, then the moved ones in order
-  EXPECT_TRUE(copy.background_points.topRows(2).isApprox(o.background_points));
-  EXPECT_TRUE(copy.background_points.row(2).isApprox(o.foreground_points.row(11)));
-  EXPECT_TRUE(copy.background_points.row(4).isApprox(o.foreground_points.row(13)));
+  EXPECT_FALSE(copy.segmentation.foreground_points.row(11).allFinite());
+  ASSERT_EQ(copy.segmentation.background_points.rows(),
+            5);  // the two old rows, then the moved ones in order
+  EXPECT_TRUE(
+      copy.segmentation.background_points.topRows(2).isApprox(o.segmentation.background_points));
+  EXPECT_TRUE(copy.segmentation.background_points.row(2).isApprox(
+      o.segmentation.foreground_points.row(11)));
+  EXPECT_TRUE(copy.segmentation.background_points.row(4).isApprox(
+      o.segmentation.foreground_points.row(13)));
   // A larger radius reaches the last point; no box anchors nothing; +inf margin = the box.
   DynamicObjects wide = o;
-  wide.foreground_radius = 0.4F;
+  wide.segmentation.foreground_radius = 0.4F;
   EXPECT_EQ(ds3d::slam::keep_anchored_foreground(wide, 0.1F), 2U);
   DynamicObjects none = o;
   none.boxes_3d.clear();
   EXPECT_EQ(ds3d::slam::keep_anchored_foreground(none, 0.1F), 14U);
-  EXPECT_EQ(none.foreground_points.rows(), 1);  // the NaN row stays
+  EXPECT_EQ(none.segmentation.foreground_points.rows(), 1);  // the NaN row stays
   DynamicObjects inf = o;
   EXPECT_EQ(ds3d::slam::keep_anchored_foreground(inf, std::numeric_limits<float>::infinity()), 3U);
   // Errors name the function and the parameter.
@@ -598,7 +606,7 @@ TEST(KeepAnchoredForeground, KeepsWhatIsConnectedToABoxAndMovesTheRest) {
     }
   }
   DynamicObjects b = o;
-  b.foreground_radius = 0.0F;
+  b.segmentation.foreground_radius = 0.0F;
   EXPECT_THROW((void)ds3d::slam::keep_anchored_foreground(b, 0.1F), ds3d::InvalidArgument);
 }
 
@@ -780,8 +788,8 @@ TEST(HdbscanMasker, CarriedRegionsAreCheckedAgainstTheSegmentation) {
   DynamicObjects obj;
   obj.boxes_3d.push_back(pixel_box(cam, 240, 320, 70, 479, 1.3, 1.8));
   obj.boxes_3d_margin.push_back(0.1F);
-  obj.boxes_3d_segmented.push_back(1);
-  obj.foreground_points = a;
+  obj.segmentation.boxes_3d_segmented.push_back(1);
+  obj.segmentation.foreground_points = a;
   ds3d::slam::HdbscanMasker masker;
   const auto m1 = masker.mask(f, cam, feats, obj);
   const auto on_a = [&](std::size_t i) {
@@ -796,7 +804,7 @@ TEST(HdbscanMasker, CarriedRegionsAreCheckedAgainstTheSegmentation) {
 
   // Next frame, the same scene: the detector misses A and finds B; the part head still labels A.
   obj.boxes_3d[0] = pixel_box(cam, 490, 570, 70, 479, 1.3, 1.8);
-  obj.foreground_points = stack(a, b);
+  obj.segmentation.foreground_points = stack(a, b);
   const auto m2 = masker.mask(f, cam, feats, obj);
   const auto& boxes = masker.last_result().boxes;
   ASSERT_TRUE(
@@ -812,103 +820,4 @@ TEST(HdbscanMasker, CarriedRegionsAreCheckedAgainstTheSegmentation) {
       EXPECT_EQ(m2[i], 0) << "on the wall at " << p.x << "," << p.y;
     }
   }
-}
-
-namespace {
-
-// A flat 20 x 20 grid at 0.05 m spacing (z = 2 m) with one logit per point.
-ds3d::Points3f grid_points() {
-  ds3d::Points3f p(400, 3);
-  for (int i = 0; i < 20; ++i) {
-    for (int j = 0; j < 20; ++j) {
-      p.row(i * 20 + j) << 0.05F * static_cast<float>(i), 0.05F * static_cast<float>(j), 2.0F;
-    }
-  }
-  return p;
-}
-
-}  // namespace
-
-TEST(SmoothSegmentation, RelabelsIsolatedPointsAndKeepsWellSupportedBoundaries) {
-  using ds3d::slam::smooth_segmentation;
-  const ds3d::Points3f p = grid_points();
-  // Foreground everywhere but three isolated points the "network" called background.
-  std::vector<float> lg(400, 2.0F);
-  for (const int r : {42, 205, 317}) lg[static_cast<std::size_t>(r)] = -1.0F;
-  const std::vector<float> s = smooth_segmentation(p, lg, 0.05, 1.0F);
-  ASSERT_EQ(s.size(), lg.size());
-  for (std::size_t r = 0; r < s.size(); ++r) {
-    EXPECT_TRUE(std::isfinite(s[r])) << r;
-    EXPECT_GT(s[r], 0.0F) << r;  // the isolated points join their surface
-  }
-  // Two half planes (rows i < 10 foreground, i >= 10 background, equally confident): the
-  // boundary stays where the unaries put it, and each side gets more confident.
-  std::vector<float> half(400);
-  for (int r = 0; r < 400; ++r) half[static_cast<std::size_t>(r)] = r / 20 < 10 ? 1.5F : -1.5F;
-  const std::vector<float> h = smooth_segmentation(p, half, 0.05, 1.0F);
-  for (int r = 0; r < 400; ++r) {
-    const auto k = static_cast<std::size_t>(r);
-    if (r / 20 < 10) {
-      EXPECT_GT(h[k], 0.0F) << r;
-      EXPECT_GE(h[k], half[k]) << r;
-    } else {
-      EXPECT_LT(h[k], 0.0F) << r;
-      EXPECT_LE(h[k], half[k]) << r;
-    }
-  }
-  // Weight 0: unchanged. A point with no neighbour within two kernel widths: unchanged.
-  EXPECT_EQ(smooth_segmentation(p, lg, 0.05, 0.0F), lg);
-  ds3d::Points3f far = p;
-  far.row(0) << 10.0F, 10.0F, 10.0F;
-  EXPECT_EQ(smooth_segmentation(far, lg, 0.05, 1.0F)[0], lg[0]);
-}
-
-TEST(SmoothSegmentation, NonFiniteRowsTakeNoPartAndBadArgumentsThrow) {
-  using ds3d::slam::smooth_segmentation;
-  const ds3d::Points3f p = grid_points();
-  std::vector<float> lg(400);
-  for (int r = 0; r < 400; ++r)
-    lg[static_cast<std::size_t>(r)] = std::sin(0.37F * static_cast<float>(r));
-  const std::vector<float> base = smooth_segmentation(p, lg, 0.05, 1.0F);
-  // A NaN logit keeps its value and changes nothing else; so does a NaN point, which is also
-  // nobody's neighbour: the other rows equal the run without those rows' influence.
-  std::vector<float> with_nan = lg;
-  with_nan[399] = std::nanf("");
-  ds3d::Points3f p_nan = p;
-  p_nan.row(398).setConstant(std::numeric_limits<float>::quiet_NaN());
-  const std::vector<float> s = smooth_segmentation(p_nan, with_nan, 0.05, 1.0F);
-  EXPECT_TRUE(std::isnan(s[399]));
-  EXPECT_EQ(s[398], lg[398]);
-  ds3d::Points3f p_cut = p.topRows(398);
-  const std::vector<float> cut =
-      smooth_segmentation(p_cut, std::vector<float>(lg.begin(), lg.begin() + 398), 0.05, 1.0F);
-  for (std::size_t r = 0; r < 398; ++r) EXPECT_EQ(s[r], cut[r]) << r;
-  EXPECT_EQ(smooth_segmentation(p, lg, 0.05, 1.0F), base);
-  const auto message = [&](auto&& call) {
-    try {
-      call();
-    } catch (const ds3d::InvalidArgument& e) {
-      return std::string(e.what());
-    }
-    return std::string("no throw");
-  };
-  EXPECT_NE(message([&] {
-              (void)smooth_segmentation(p, std::vector<float>(3), 0.05, 1.0F);
-            }).find("smooth_segmentation: logits must have one value per row"),
-            std::string::npos);
-  EXPECT_NE(message([&] {
-              (void)smooth_segmentation(p, lg, 0.0, 1.0F);
-            }).find("kernel_width must be finite and > 0 (got 0)"),
-            std::string::npos);
-  EXPECT_NE(
-      message([&] { (void)smooth_segmentation(p, lg, std::nan(""), 1.0F); }).find("kernel_width"),
-      std::string::npos);
-  EXPECT_NE(message([&] {
-              (void)smooth_segmentation(p, lg, 0.05, -1.0F);
-            }).find("weight must be finite and >= 0 (got -1)"),
-            std::string::npos);
-  EXPECT_NE(message([&] {
-              (void)smooth_segmentation(p, lg, 0.05, 1.0F, 0);
-            }).find("iterations must be >= 1 (got 0)"),
-            std::string::npos);
 }

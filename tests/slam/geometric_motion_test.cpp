@@ -25,9 +25,8 @@
 // and hold_min_points; DS3D_GEOM_TEST_FP_STATS=1 prints one line per false positive (distance to
 // the nearest person pixel, depth or not, octave) and per miss (inside an image box or not,
 // depth or not, dynamic after the box filter, gated by a box's solid).
-// DS3D_GEOM_TEST_HTX_DRAWS=N, _HTX_SEGMENT_FRAMES=K and _HTX_FG_PROB=P set
-// HtxSourceParams::draws, segment_frames and foreground_min_prob;
-// DS3D_GEOM_TEST_HTX_SMOOTHING=W sets HtxSourceParams::segment_smoothing, and
+// DS3D_GEOM_TEST_HTX_SEGMENT_FRAMES=K and _HTX_FG_PROB=P set
+// HtxSourceParams::segment_frames and foreground_min_prob, and
 // DS3D_GEOM_TEST_ORACLE_RELABEL=1 relabels the source's own segmented points by the generator's
 // mask at their pixels (the ceiling of a perfect part head at the network's point resolution).
 #include "ds3d/slam/dynamic/geometric_motion.hpp"
@@ -116,14 +115,8 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
     if (const char* h = std::getenv("DS3D_GEOM_TEST_HTX_HOLD"); h != nullptr) {
       opt.htx.hold_frames = std::stoi(h);
     }
-    if (const char* d = std::getenv("DS3D_GEOM_TEST_HTX_DRAWS"); d != nullptr) {
-      opt.htx.draws = std::stoi(d);
-    }
     if (const char* sf = std::getenv("DS3D_GEOM_TEST_HTX_SEGMENT_FRAMES"); sf != nullptr) {
       opt.htx.segment_frames = std::stoi(sf);
-    }
-    if (const char* w = std::getenv("DS3D_GEOM_TEST_HTX_SMOOTHING"); w != nullptr) {
-      opt.htx.segment_smoothing = std::stof(w);
     }
     if (const char* fp = std::getenv("DS3D_GEOM_TEST_HTX_FG_PROB"); fp != nullptr) {
       opt.htx.foreground_min_prob = std::stof(fp);
@@ -152,7 +145,8 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
     const Frame f = get(i);
     auto obj = other ? other->detect(f.input, cam) : src.detect(f.input, cam);
     if (drop_plane) obj.support_plane.reset();
-    if (std::getenv("DS3D_GEOM_TEST_NO_BACKGROUND") != nullptr) obj.background_points.resize(0, 3);
+    if (std::getenv("DS3D_GEOM_TEST_NO_BACKGROUND") != nullptr)
+      obj.segmentation.background_points.resize(0, 3);
     if (std::getenv("DS3D_GEOM_TEST_ORACLE_FG") != nullptr && !f.truth.empty()) {
       std::vector<Eigen::Vector3f> pts[2];
       for (int y = 0; y < f.truth.rows; y += 4) {
@@ -164,20 +158,21 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
         }
       }
       for (int w = 0; w < 2; ++w) {
-        auto& to = w == 1 ? obj.foreground_points : obj.background_points;
+        auto& to = w == 1 ? obj.segmentation.foreground_points : obj.segmentation.background_points;
         to.resize(static_cast<Eigen::Index>(pts[w].size()), 3);
         for (std::size_t k = 0; k < pts[w].size(); ++k) {
           to.row(static_cast<Eigen::Index>(k)) = pts[w][k].transpose();
         }
       }
-      obj.boxes_3d_segmented.assign(obj.boxes_3d.size(), 1);
+      obj.segmentation.boxes_3d_segmented.assign(obj.boxes_3d.size(), 1);
       if (const char* r = std::getenv("DS3D_GEOM_TEST_FG_RADIUS"); r != nullptr) {
-        obj.foreground_radius = std::stof(r);
+        obj.segmentation.foreground_radius = std::stof(r);
       }
     }
     if (std::getenv("DS3D_GEOM_TEST_ORACLE_RELABEL") != nullptr && !f.truth.empty()) {
       std::vector<Eigen::Vector3f> pts[2];
-      for (const auto* cloud : {&obj.foreground_points, &obj.background_points}) {
+      for (const auto* cloud :
+           {&obj.segmentation.foreground_points, &obj.segmentation.background_points}) {
         for (Eigen::Index k = 0; k < cloud->rows(); ++k) {
           const Eigen::Vector3f q = cloud->row(k).transpose();
           const Eigen::Vector2d uv = cam.project(q.cast<double>());
@@ -189,7 +184,7 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
         }
       }
       for (int w = 0; w < 2; ++w) {
-        auto& to = w == 1 ? obj.foreground_points : obj.background_points;
+        auto& to = w == 1 ? obj.segmentation.foreground_points : obj.segmentation.background_points;
         to.resize(static_cast<Eigen::Index>(pts[w].size()), 3);
         for (std::size_t k = 0; k < pts[w].size(); ++k) {
           to.row(static_cast<Eigen::Index>(k)) = pts[w][k].transpose();

@@ -123,10 +123,10 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
   }
   if (!support_plane.is_none()) o.support_plane = plane_from(fn, "support_plane", support_plane);
   if (!foreground_points.is_none()) {
-    o.foreground_points = points_from(fn, "foreground_points", foreground_points);
+    o.segmentation.foreground_points = points_from(fn, "foreground_points", foreground_points);
   }
   if (!background_points.is_none()) {
-    o.background_points = points_from(fn, "background_points", background_points);
+    o.segmentation.background_points = points_from(fn, "background_points", background_points);
   }
   if (!boxes_3d_segmented.is_none()) {
     const auto a =
@@ -135,14 +135,15 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
                ": boxes_3d_segmented must be a (K,) bool array, one per 3-D box (got ",
                pu::describe(boxes_3d_segmented), " for ", o.boxes_3d.size(), " boxes)");
     for (py::ssize_t i = 0; i < a.shape(0); ++i) {
-      o.boxes_3d_segmented.push_back(a.at(i) ? 1 : 0);
+      o.segmentation.boxes_3d_segmented.push_back(a.at(i) ? 1 : 0);
     }
   }
   DS3D_CHECK(std::isfinite(foreground_radius) && foreground_radius > 0.0F, fn,
              ": foreground_radius must be finite and > 0 (got ", foreground_radius, ")");
-  o.foreground_radius = foreground_radius;
-  if (!segment_plane.is_none()) o.segment_plane = plane_from(fn, "segment_plane", segment_plane);
-  o.segment_outside_boxes = segment_outside_boxes;
+  o.segmentation.foreground_radius = foreground_radius;
+  if (!segment_plane.is_none())
+    o.segmentation.segment_plane = plane_from(fn, "segment_plane", segment_plane);
+  o.segmentation.segment_outside_boxes = segment_outside_boxes;
   if (!pixel_mask.is_none()) {
     const auto m = pu::exact<std::uint8_t>(fn, "pixel_mask", pixel_mask, "an (H, W) uint8 array");
     DS3D_CHECK(m.ndim() == 2, fn, ": pixel_mask must be an (H, W) uint8 array (got ",
@@ -264,20 +265,21 @@ void bind_dynamic_sources(py::module_& m) {
           "(4,) floor plane (a, b, c, d) in the camera frame, or None.")
       .def_property_readonly(
           "foreground_points",
-          [](const DynamicObjects& o) { return ds3d::Points3f(o.foreground_points); },
+          [](const DynamicObjects& o) { return ds3d::Points3f(o.segmentation.foreground_points); },
           "(N, 3) float32 points segmented as on the objects [m, camera frame] (htx with "
           "segment), or (0, 3).")
       .def_property_readonly(
           "background_points",
-          [](const DynamicObjects& o) { return ds3d::Points3f(o.background_points); },
+          [](const DynamicObjects& o) { return ds3d::Points3f(o.segmentation.background_points); },
           "(M, 3) float32 points the same segmentation put off the objects [m, camera frame], "
           "or (0, 3).")
       .def_property_readonly(
           "boxes_3d_segmented",
           [](const DynamicObjects& o) {
-            py::array_t<bool> a(static_cast<py::ssize_t>(o.boxes_3d_segmented.size()));
-            for (std::size_t i = 0; i < o.boxes_3d_segmented.size(); ++i) {
-              a.mutable_at(static_cast<py::ssize_t>(i)) = o.boxes_3d_segmented[i] != 0U;
+            py::array_t<bool> a(static_cast<py::ssize_t>(o.segmentation.boxes_3d_segmented.size()));
+            for (std::size_t i = 0; i < o.segmentation.boxes_3d_segmented.size(); ++i) {
+              a.mutable_at(static_cast<py::ssize_t>(i)) =
+                  o.segmentation.boxes_3d_segmented[i] != 0U;
             }
             return a;
           },
@@ -286,16 +288,18 @@ void bind_dynamic_sources(py::module_& m) {
       .def_property_readonly(
           "segment_plane",
           [](const DynamicObjects& o) -> py::object {
-            if (!o.segment_plane) return py::none();
-            return py::cast(Eigen::Vector4f(*o.segment_plane));
+            if (!o.segmentation.segment_plane) return py::none();
+            return py::cast(Eigen::Vector4f(*o.segmentation.segment_plane));
           },
           "(4,) plane (a, b, c, d) in the camera frame that the segmentation's source left out of "
           "its input (htx: the floor), or None.")
       .def_property_readonly(
-          "segment_outside_boxes", [](const DynamicObjects& o) { return o.segment_outside_boxes; },
+          "segment_outside_boxes",
+          [](const DynamicObjects& o) { return o.segmentation.segment_outside_boxes; },
           "True when the segmentation also decides keypoints outside the boxes.")
       .def_property_readonly(
-          "foreground_radius", [](const DynamicObjects& o) { return o.foreground_radius; },
+          "foreground_radius",
+          [](const DynamicObjects& o) { return o.segmentation.foreground_radius; },
           "largest keypoint-to-foreground-point distance [m] for the segmentation check.")
       .def_property_readonly(
           "pixel_mask",
@@ -406,35 +410,6 @@ void bind_dynamic_sources(py::module_& m) {
       .def_property_readonly("name", &HdbscanMasker::name);
 
   m.def(
-      "smooth_segmentation",
-      [](const py::object& points, const py::object& logits, double kernel_width, float weight,
-         int iterations) {
-        constexpr const char* kFn = "ds3d.smooth_segmentation";
-        const ds3d::Points3f p = points_from(kFn, "points", points);
-        const auto l =
-            py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(logits);
-        DS3D_CHECK(l && l.ndim() == 1, kFn, ": logits must be an (N,) array (got ",
-                   pu::describe(logits), ")");
-        std::vector<float> lg(l.data(), l.data() + l.shape(0));
-        std::vector<float> out;
-        {
-          const py::gil_scoped_release release;
-          out = ds3d::slam::smooth_segmentation(p, lg, kernel_width, weight, iterations);
-        }
-        py::array_t<float> a(static_cast<py::ssize_t>(out.size()));
-        std::copy(out.begin(), out.end(), a.mutable_data());
-        return a;
-      },
-      py::arg("points"), py::arg("logits"), py::arg("kernel_width"), py::arg("weight"),
-      py::arg("iterations") = 5,
-      "Mean-field smoothing of a point segmentation (HtxSource's segment_smoothing): points (N, "
-      "3)\n"
-      "[m], logits (N,) foreground logits, kernel_width [m] > 0 (Gaussian kernel, neighbours\n"
-      "within 2 widths), weight >= 0 (0 = unchanged), iterations >= 1. Returns the (N,) float32\n"
-      "posterior logits; rows with a non-finite point or logit keep theirs. ValueError on bad\n"
-      "arguments (docs/dynamic.md).");
-
-  m.def(
       "keep_anchored_foreground",
       [](DynamicObjects objects, float margin) {
         const std::size_t moved = ds3d::slam::keep_anchored_foreground(objects, margin);
@@ -451,13 +426,11 @@ void bind_dynamic_sources(py::module_& m) {
       "make_dynamic_source",
       [](const std::string& spec, const py::object& weights, int detect_every,
          std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor,
-         bool segment, std::optional<int> hold_frames, int draws, std::optional<int> segment_frames,
-         std::optional<float> segment_smoothing, bool segment_outside_boxes) {
+         bool segment, std::optional<int> hold_frames, std::optional<int> segment_frames,
+         bool segment_outside_boxes) {
         ds3d::slam::DynamicSourceOptions o;
         o.htx.segment_outside_boxes = segment_outside_boxes;
-        if (segment_smoothing) o.htx.segment_smoothing = *segment_smoothing;
         if (hold_frames) o.htx.hold_frames = *hold_frames;
-        o.htx.draws = draws;
         if (segment_frames) o.htx.segment_frames = *segment_frames;
         o.weights = pu::path_from(weights);
         o.htx.detect_every = detect_every;
@@ -470,8 +443,7 @@ void bind_dynamic_sources(py::module_& m) {
       py::arg("spec"), py::arg("weights") = "", py::arg("detect_every") = 1,
       py::arg("min_score") = py::none(), py::arg("box_uncertainty") = py::none(),
       py::arg("report_floor") = false, py::arg("segment") = true,
-      py::arg("hold_frames") = py::none(), py::arg("draws") = 1,
-      py::arg("segment_frames") = py::none(), py::arg("segment_smoothing") = py::none(),
+      py::arg("hold_frames") = py::none(), py::arg("segment_frames") = py::none(),
       py::arg("segment_outside_boxes") = true,
       "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
       "(A, then B on what A left, e.g. 'htx+geometric'), 'A&B' (A's boxes only where B sees\n"
@@ -482,13 +454,9 @@ void bind_dynamic_sources(py::module_& m) {
       ">= 1, min_score in [0, 1] and box_uncertainty [m] (>= 0 or inf), report_floor and segment\n"
       "(the part head's foreground confirms the boxes' keypoints; default on) and hold_frames\n"
       "(>= 0, default 10: carry a missed box while the part head sees foreground in it; set to\n"
-      "0 under 'A&&geometric'), draws (>= 1, default 1: network passes on different input\n"
-      "draws per frame, part head averaged, later draws' new boxes added) and segment_frames\n"
-      "(>= 0, default 10, 0 = off: average each point's part-head logit with its nearest\n"
-      "point's in the last frames; docs/dynamic.md) and segment_smoothing "
-      "(finite, >= 0, default\n"
-      "0 = off: weight of the mean-field smoothing of the part head's labels over neighbouring\n"
-      "points) and segment_outside_boxes (default True: the part head also marks\n"
+      "0 under 'A&&geometric'), segment_frames (>= 0, default 10, 0 = off: average each\n"
+      "point's part-head logit with its nearest point's in the last frames; docs/dynamic.md)\n"
+      "and segment_outside_boxes (default True: the part head also marks\n"
       "the keypoints it sees on people outside the boxes) for htx. "
       "ValueError for\n"
       "an unknown name or bad options,\n"
