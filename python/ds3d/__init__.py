@@ -12,7 +12,7 @@ from ._ds3d import *  # noqa: F401,F403
 from . import htx  # noqa: F401  (lazy: torch is imported on first use)
 from .hdbscan import HdbscanResult, hdbscan, hdbscan_precomputed  # noqa: F401
 from .config import SlamConfig, config_keys  # noqa: F401
-from .slam import run_slam  # noqa: F401
+from .slam import make_dynamic_source, run_slam  # noqa: F401
 
 from . import synth  # noqa: F401
 

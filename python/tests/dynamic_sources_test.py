@@ -191,18 +191,25 @@ def test_make_dynamic_source_builds_htx_and_composites():
     import pathlib
     weights = pathlib.Path(__file__).resolve().parents[2] / "tests" / "data" / "htx" / "tiny_weights.safetensors"
     f = ds3d.synth.Scene("walking_xyz", frames=1, seed=3).render(0)
-    for spec in ("htx", "htx+geometric", "geometric+htx", "htx&geometric", "htx&&geometric"):
-        src = ds3d.make_dynamic_source(spec, weights=weights, min_score=0.0, report_floor=True)
-        assert src.name == spec
+    names = {"motion": "htx&geometric", "evidence": "htx&&geometric"}
+    for spec, gate in (("htx", None), ("htx+geometric", None), ("geometric+htx", None),
+                       ("htx", "motion"), ("htx", "evidence")):
+        src = ds3d.make_dynamic_source(spec, gate=gate, weights=weights, min_score=0.0,
+                                       report_floor=True)
+        assert src.name == (names[gate] if gate else spec)
         o = src.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
         assert o.boxes_3d.shape[1:] == (8, 3) and np.all(np.isfinite(o.boxes_3d))
-        if spec == "htx":  # one metric uncertainty per box, the floor of the frame
+        if spec == "htx" and gate is None:  # one metric uncertainty per box, the floor of the frame
             assert np.allclose(o.boxes_3d_margin, 0.15) and len(o.boxes_3d_margin) == len(o.boxes_3d)
             assert o.support_plane is not None and o.support_plane[1] < -0.8
-        if "&" not in spec:  # the gates need motion, which a first frame cannot show
+        if gate is None:  # the gates need motion, which a first frame cannot show
             assert len(o.boxes_3d) > 0  # min_score 0 keeps the untrained fixture's boxes
-    with pytest.raises(ValueError, match="geometric source's evidence"):
+    with pytest.raises(ValueError, match="htx&&htx"):  # gates are a separate setting now
         ds3d.make_dynamic_source("htx&&htx", weights=weights)
+    with pytest.raises(ValueError, match="gate"):
+        ds3d.make_dynamic_source("none", gate="motion")
+    with pytest.raises(TypeError, match="no_such"):
+        ds3d.make_dynamic_source("htx", weights=weights, no_such=1)
     with pytest.raises(RuntimeError, match="nonexistent"):
         ds3d.make_dynamic_source("htx", weights="/nonexistent/w.safetensors")
     with pytest.raises(ValueError, match="detect_every"):

@@ -4,31 +4,23 @@
 // static room with a moving camera must stay clean, walkers must be found), and (when
 // ../shared/data exists) recorded sequences: Bonn crowd (people walking) and TUM fr1_xyz (static
 // desk, fast handheld camera). DS3D_DEBUG_GEOM=1 prints a per-frame trace.
-// DS3D_GEOM_TEST_SOURCE=SPEC (a `--dynamic` value of ds3d-slam, e.g. htx or htx&geometric) runs
+// DS3D_GEOM_TEST_SOURCE=SPEC (a `--dynamic` value of ds3d-slam, e.g. htx or htx+geometric) runs
 // StaticRoomStaysClean, SyntheticScenariosAgainstMasks and RecordedData with that source instead;
 // the synthetic scenarios then print their figures without checking them (docs/dynamic.md: the
 // HTx source on the synthetic scenarios). The other tests always run the geometric source.
-// DS3D_GEOM_TEST_GATE_ALPHA, _CHI2, _HOLD and _NO_PIXELS=1 set MotionGateParams' alpha,
-// keypoint_chi2, hold_frames and pixel_evidence = false (`htx&&geometric`);
-// DS3D_GEOM_TEST_FROM=N counts the synthetic scenes from frame N on. Measurement
-// knobs for that mode (docs/dynamic.md): DS3D_GEOM_TEST_HTX_UNCERTAINTY=M sets
-// HtxSourceParams::box_uncertainty (metres, or inf), DS3D_GEOM_TEST_FLOOR=1 sets
-// HtxSourceParams::report_floor (off by default), DS3D_GEOM_TEST_NO_PLANE=1 drops any support
-// plane of the source before the masker, DS3D_GEOM_TEST_NO_SEGMENT=1 sets
-// HtxSourceParams::segment = false (no part-head confirmation),
-// DS3D_GEOM_TEST_FG_RADIUS=M sets HtxSourceParams::foreground_radius (and the oracle's radius),
-// DS3D_GEOM_TEST_WEIGHTS=PATH the HTx weights file, DS3D_GEOM_TEST_NO_BACKGROUND=1
-// drops DynamicObjects::background_points (the radius rule alone), and
+// DS3D_GEOM_TEST_SET="KEY=VALUE ..." sets configuration keys of that source, as `ds3d-slam --set`
+// (docs/configuration.md), e.g. "dynamic.gate=evidence htx.report_floor=true gate.alpha=1e-3".
+// DS3D_GEOM_TEST_FROM=N counts the synthetic scenes from frame N on. Measurement knobs:
+// DS3D_GEOM_TEST_NO_PLANE=1 drops any support plane of the source before the masker,
+// DS3D_GEOM_TEST_FG_RADIUS=M sets the oracle's foreground radius, DS3D_GEOM_TEST_NO_BACKGROUND=1
+// drops the segmentation's background points (the radius rule alone), and
 // DS3D_GEOM_TEST_ORACLE_FG=1 replaces the segmentation by the generator's mask (every 4th pixel
 // with depth, on the mask = foreground, else background), the ceiling of the segmented masker.
-// DS3D_GEOM_TEST_HTX_HOLD=K and _HTX_HOLD_POINTS=N set HtxSourceParams::hold_frames
-// and hold_min_points; DS3D_GEOM_TEST_FP_STATS=1 prints one line per false positive (distance to
-// the nearest person pixel, depth or not, octave) and per miss (inside an image box or not,
-// depth or not, dynamic after the box filter, gated by a box's solid).
-// DS3D_GEOM_TEST_HTX_SEGMENT_FRAMES=K and _HTX_FG_PROB=P set
-// HtxSourceParams::segment_frames and foreground_min_prob, and
-// DS3D_GEOM_TEST_ORACLE_RELABEL=1 relabels the source's own segmented points by the generator's
-// mask at their pixels (the ceiling of a perfect part head at the network's point resolution).
+// DS3D_GEOM_TEST_FP_STATS=1 prints one line per false positive (distance to the nearest person
+// pixel, depth or not, octave) and per miss (inside an image box or not, depth or not, dynamic
+// after the box filter, gated by a box's solid). DS3D_GEOM_TEST_ORACLE_RELABEL=1 relabels the
+// source's own segmented points by the generator's mask at their pixels (the ceiling of a
+// perfect part head at the network's point resolution).
 #include "ds3d/slam/dynamic/geometric_motion.hpp"
 
 #include <gtest/gtest.h>
@@ -42,6 +34,7 @@
 #include <memory>
 #include <optional>
 #include <random>
+#include <sstream>
 #include <string>
 #include <tuple>
 
@@ -50,6 +43,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/config.hpp"
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/slam/synth.hpp"
 #include "support/files.hpp"
@@ -102,39 +96,18 @@ Counts run_source(const std::function<Frame(std::size_t)>& get, std::size_t n, s
   // Another source to measure (see the file comment); the geometric trace then stays empty.
   std::shared_ptr<ds3d::slam::DynamicObjectSource> other;
   if (other_spec != nullptr) {
-    ds3d::slam::DynamicSourceOptions opt;
-    if (const char* u = std::getenv("DS3D_GEOM_TEST_HTX_UNCERTAINTY"); u != nullptr) {
-      opt.htx.box_uncertainty = std::stof(u);
+    // The source's settings are configuration keys (docs/configuration.md), as for ds3d-slam.
+    ds3d::slam::SlamConfig cfg;
+    cfg.set("dynamic.source", other_spec);
+    if (const char* s = std::getenv("DS3D_GEOM_TEST_SET"); s != nullptr) {
+      std::istringstream in(s);
+      for (std::string kv; in >> kv;) {
+        const auto eq = kv.find('=');
+        cfg.set(kv.substr(0, eq), eq == std::string::npos ? "" : kv.substr(eq + 1));
+      }
     }
-    opt.htx.report_floor = std::getenv("DS3D_GEOM_TEST_FLOOR") != nullptr;
-    if (const char* w = std::getenv("DS3D_GEOM_TEST_WEIGHTS"); w != nullptr) opt.weights = w;
-    opt.htx.segment = std::getenv("DS3D_GEOM_TEST_NO_SEGMENT") == nullptr;
-    if (const char* r = std::getenv("DS3D_GEOM_TEST_FG_RADIUS"); r != nullptr) {
-      opt.htx.foreground_radius = std::stof(r);
-    }
-    if (const char* h = std::getenv("DS3D_GEOM_TEST_HTX_HOLD"); h != nullptr) {
-      opt.htx.hold_frames = std::stoi(h);
-    }
-    if (const char* sf = std::getenv("DS3D_GEOM_TEST_HTX_SEGMENT_FRAMES"); sf != nullptr) {
-      opt.htx.segment_frames = std::stoi(sf);
-    }
-    if (const char* fp = std::getenv("DS3D_GEOM_TEST_HTX_FG_PROB"); fp != nullptr) {
-      opt.htx.foreground_min_prob = std::stof(fp);
-    }
-    if (const char* h = std::getenv("DS3D_GEOM_TEST_HTX_HOLD_POINTS"); h != nullptr) {
-      opt.htx.hold_min_points = std::stoi(h);
-    }
-    if (const char* a = std::getenv("DS3D_GEOM_TEST_GATE_ALPHA"); a != nullptr) {
-      opt.gate.alpha = std::stod(a);
-    }
-    if (const char* c = std::getenv("DS3D_GEOM_TEST_GATE_CHI2"); c != nullptr) {
-      opt.gate.keypoint_chi2 = std::stod(c);
-    }
-    if (const char* h = std::getenv("DS3D_GEOM_TEST_GATE_HOLD"); h != nullptr) {
-      opt.gate.hold_frames = std::stoi(h);
-    }
-    opt.gate.pixel_evidence = std::getenv("DS3D_GEOM_TEST_GATE_NO_PIXELS") == nullptr;
-    other = ds3d::slam::make_dynamic_source(other_spec, opt);
+    cfg.validate();
+    other = ds3d::slam::make_dynamic_source(cfg);
   }
   const bool drop_plane = std::getenv("DS3D_GEOM_TEST_NO_PLANE") != nullptr;
   ds3d::slam::HdbscanMasker masker;

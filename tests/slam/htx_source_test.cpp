@@ -23,6 +23,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "ds3d/slam/config.hpp"
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
 #include "ds3d/slam/dynamic/geometric_motion.hpp"
@@ -723,7 +724,7 @@ TEST(MotionGatedSource, EvidenceGateDropsABoxWithoutMotion) {
 // the geometric source's two views, < 1 px sideways: rarely above its 99.9 % χ² test, no warp
 // area) is kept within a few frames on the raw evidence inside the box, and is still kept
 // (tracked) after stopping at frame 14, for as long as it is detected within the hold. The
-// overlap gate (`htx&geometric`) never keeps it.
+// motion gate (`--gate motion`) never keeps it.
 TEST(MotionGatedSource, EvidenceGateConfirmsAnApproachingPersonAndTracksItWhenItStops) {
   const auto approach = [](int i) { return 3.0F - 0.03F * static_cast<float>(std::min(i, 14)); };
   const std::vector<int> kept = kept_frames(true, approach, 30);
@@ -752,8 +753,16 @@ TEST(DynamicSources, MakeHtxAndCompositeFromSpec) {
   ASSERT_NE(dynamic_cast<HtxSource*>(htx.get()), nullptr);
   EXPECT_EQ(dynamic_cast<HtxSource*>(htx.get())->params().detect_every, 2);
   EXPECT_EQ(ds3d::slam::make_dynamic_source("htx+geometric", opt)->name(), "htx+geometric");
-  EXPECT_EQ(ds3d::slam::make_dynamic_source("htx&geometric", opt)->name(), "htx&geometric");
-  const auto ev = ds3d::slam::make_dynamic_source("htx&&geometric", opt);
+  // Gates come from SlamConfig (config.hpp), not from the spec.
+  ds3d::slam::SlamConfig cfg;
+  cfg.weights = fixture_weights();
+  cfg.htx.detect_every = 2;
+  cfg.dynamic = "htx";
+  cfg.gate = ds3d::slam::Gate::kMotion;
+  const auto ov = ds3d::slam::make_dynamic_source(cfg);
+  EXPECT_EQ(ov->name(), "htx&geometric");
+  cfg.gate = ds3d::slam::Gate::kEvidence;
+  const auto ev = ds3d::slam::make_dynamic_source(cfg);
   EXPECT_EQ(ev->name(), "htx&&geometric");
   ASSERT_NE(dynamic_cast<ds3d::slam::MotionGatedSource*>(ev.get()), nullptr);
   EXPECT_TRUE(dynamic_cast<ds3d::slam::MotionGatedSource*>(ev.get())->params().evidence);
@@ -762,15 +771,14 @@ TEST(DynamicSources, MakeHtxAndCompositeFromSpec) {
       dynamic_cast<ds3d::slam::MotionGatedSource*>(ev.get())->semantic().get());
   ASSERT_NE(ev_htx, nullptr);
   EXPECT_EQ(ev_htx->params().hold_frames, 0);
-  const auto ov = ds3d::slam::make_dynamic_source("htx&geometric", opt);
   const auto* ov_htx = dynamic_cast<const HtxSource*>(
       dynamic_cast<ds3d::slam::MotionGatedSource*>(ov.get())->semantic().get());
   ASSERT_NE(ov_htx, nullptr);
   EXPECT_EQ(ov_htx->params().hold_frames, HtxSourceParams{}.hold_frames);
-  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx&&htx", opt), ds3d::InvalidArgument);
-  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx&&", opt), ds3d::InvalidArgument);
-  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx&none", opt), ds3d::InvalidArgument);
-  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx&", opt), ds3d::InvalidArgument);
+  EXPECT_FALSE(dynamic_cast<ds3d::slam::MotionGatedSource*>(ov.get())->params().evidence);
+  // The old '&' grammar is gone (unquoted, the shell ran `htx` in the background).
+  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx&geometric", opt), ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx&&geometric", opt), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx+bogus", opt), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::slam::make_dynamic_source("none+htx", opt), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx+", opt), ds3d::InvalidArgument);

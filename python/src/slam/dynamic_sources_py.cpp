@@ -2,7 +2,7 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // Bindings for include/ds3d/dynamic_sources.hpp: ds3d.DynamicObjects, the ds3d.DynamicObjectSource
 // base (detect() on numpy images), ds3d.FileSource(+Params), ds3d.HdbscanMasker,
-// ds3d.make_dynamic_source (every source by its --dynamic name, htx and composites included),
+// ds3d._make_dynamic_source (every source of a SlamConfig; ds3d.make_dynamic_source wraps it),
 // ds3d.image_boxes and ds3d.keypoint_array. GeometricMotionSource is in geometric_motion_py.cpp.
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
@@ -15,6 +15,7 @@
 #include <string>
 
 #include "../numpy_util.hpp"
+#include "ds3d/slam/config.hpp"
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "slam_py_util.hpp"
 
@@ -423,44 +424,12 @@ void bind_dynamic_sources(py::module_& m) {
       "or foreground_radius (HtxSource's segment_outside_boxes; docs/dynamic.md).");
 
   m.def(
-      "make_dynamic_source",
-      [](const std::string& spec, const py::object& weights, int detect_every,
-         std::optional<float> min_score, std::optional<float> box_uncertainty, bool report_floor,
-         bool segment, std::optional<int> hold_frames, std::optional<int> segment_frames,
-         bool segment_outside_boxes) {
-        ds3d::slam::DynamicSourceOptions o;
-        o.htx.segment_outside_boxes = segment_outside_boxes;
-        if (hold_frames) o.htx.hold_frames = *hold_frames;
-        if (segment_frames) o.htx.segment_frames = *segment_frames;
-        o.weights = pu::path_from(weights);
-        o.htx.detect_every = detect_every;
-        if (min_score) o.htx.min_score = *min_score;
-        if (box_uncertainty) o.htx.box_uncertainty = *box_uncertainty;
-        o.htx.report_floor = report_floor;
-        o.htx.segment = segment;
-        return ds3d::slam::make_dynamic_source(spec, o);
+      "_make_dynamic_source",
+      [](const ds3d::slam::SlamConfig& c) {
+        c.validate();
+        return ds3d::slam::make_dynamic_source(c);
       },
-      py::arg("spec"), py::arg("weights") = "", py::arg("detect_every") = 1,
-      py::arg("min_score") = py::none(), py::arg("box_uncertainty") = py::none(),
-      py::arg("report_floor") = false, py::arg("segment") = true,
-      py::arg("hold_frames") = py::none(), py::arg("segment_frames") = py::none(),
-      py::arg("segment_outside_boxes") = true,
-      "The source named by a --dynamic value: 'none', 'file:PATH', 'geometric', 'htx', 'A+B'\n"
-      "(A, then B on what A left, e.g. 'htx+geometric'), 'A&B' (A's boxes only where B sees\n"
-      "motion, e.g. 'htx&geometric') or 'A&&geometric' (A's boxes where the geometric source's\n"
-      "raw evidence inside them is significant, tracked; docs/dynamic.md);\n"
-      "weights = htx weights file ('' = the default model), "
-      "detect_every\n"
-      ">= 1, min_score in [0, 1] and box_uncertainty [m] (>= 0 or inf), report_floor and segment\n"
-      "(the part head's foreground confirms the boxes' keypoints; default on) and hold_frames\n"
-      "(>= 0, default 10: carry a missed box while the part head sees foreground in it; set to\n"
-      "0 under 'A&&geometric'), segment_frames (>= 0, default 10, 0 = off: average each\n"
-      "point's part-head logit with its nearest point's in the last frames; docs/dynamic.md)\n"
-      "and segment_outside_boxes (default True: the part head also marks\n"
-      "the keypoints it sees on people outside the boxes) for htx. "
-      "ValueError for\n"
-      "an unknown name or bad options,\n"
-      "RuntimeError for an unreadable file.");
+      py::arg("config"), "Internal: see ds3d.make_dynamic_source (python/ds3d/slam.py).");
 
   m.def(
       "image_boxes",

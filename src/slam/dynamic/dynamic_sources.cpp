@@ -44,8 +44,8 @@ std::filesystem::path find_default_weights() {
 std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec,
                                                          const DynamicSourceOptions& options) {
   constexpr const char* kKnown =
-      "none, geometric, htx, file:PATH, A+B (e.g. htx+geometric), A&B (e.g. htx&geometric) or "
-      "A&&geometric (e.g. htx&&geometric)";
+      "none, geometric, htx, file:PATH or A+B (e.g. htx+geometric); gates are a separate "
+      "setting (SlamConfig::gate, --gate motion|evidence)";
   if (spec == "none") return std::make_shared<NoDynamicObjects>();
   if (spec == "geometric") return std::make_shared<GeometricMotionSource>(options.geometric);
   if (spec.rfind("file:", 0) == 0) {
@@ -63,33 +63,6 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
                   "' does not exist or is not a file");
     auto detector = std::make_shared<const SparseDetector>(SparseDetector::load(weights));
     return std::make_shared<HtxSource>(std::move(detector), options.htx);
-  }
-  if (const auto amp2 = spec.find("&&"); amp2 != std::string::npos) {
-    const std::string a = spec.substr(0, amp2);
-    const std::string b = spec.substr(amp2 + 2);
-    const bool a_ok = a == "geometric" || a == "htx" || (a.rfind("file:", 0) == 0 && a.size() > 5);
-    DS3D_CHECK(a_ok && b == "geometric", "ds3d::slam::make_dynamic_source: '", spec,
-               "' must gate a source by the geometric source's evidence (expected ", kKnown, ")");
-    MotionGateParams gate = options.gate;
-    gate.evidence = true;
-    // The evidence gate holds confirmed boxes on its own tracks; carried semantic boxes would
-    // only be tested again without a new detection (fr1_xyz ATE 0.0115 m without them, 0.0123 m
-    // with them).
-    DynamicSourceOptions semantic = options;
-    semantic.htx.hold_frames = 0;
-    return std::make_shared<MotionGatedSource>(make_dynamic_source(a, semantic),
-                                               make_dynamic_source(b, options), gate);
-  }
-  if (const auto amp = spec.find('&'); amp != std::string::npos) {
-    const std::string a = spec.substr(0, amp);
-    const std::string b = spec.substr(amp + 1);
-    const auto simple = [](const std::string& x) {
-      return x == "geometric" || x == "htx" || (x.rfind("file:", 0) == 0 && x.size() > 5);
-    };
-    DS3D_CHECK(simple(a) && simple(b), "ds3d::slam::make_dynamic_source: '", spec,
-               "' must gate one source by another, neither none (expected ", kKnown, ")");
-    return std::make_shared<MotionGatedSource>(make_dynamic_source(a, options),
-                                               make_dynamic_source(b, options), options.gate);
   }
   if (const auto plus = spec.find('+'); plus != std::string::npos) {
     const std::string a = spec.substr(0, plus);

@@ -43,13 +43,12 @@ struct DynamicSourceOptions {
   MotionGateParams gate{};          ///< the gate of SlamConfig::gate (config.hpp)
 };
 
-/// Builds the source named by a `--dynamic` option value: "none", "file:PATH", "geometric"
-/// (GeometricMotionSource with default parameters), "htx" (HtxSource, weights from `options`),
-/// "A+B" with A and B any of these but none (CompositeSource: A, then B), e.g.
-/// "htx+geometric", "A&B" (MotionGatedSource: A's boxes only where B sees motion), e.g.
-/// "htx&geometric", or "A&&geometric" (MotionGatedSource with the evidence gate), e.g.
-/// "htx&&geometric"; there A's htx source gets hold_frames = 0 (the gate's own tracks hold the
-/// boxes it confirmed). A "file:" spec takes the rest of the string as its path.
+/// Builds the source named by a `--dynamic` option value: "none", "file:PATH" (FileSource with
+/// options.file; the rest of the string is the path), "geometric" (GeometricMotionSource with
+/// options.geometric), "htx" (HtxSource, weights and parameters from `options`), or "A+B" with A
+/// and B any of these but none (CompositeSource: A, then B on what A left), e.g.
+/// "htx+geometric". Gating by the geometric source (MotionGatedSource) is a separate setting:
+/// make_dynamic_source(const SlamConfig&) in config.hpp, `ds3d-slam --gate motion|evidence`.
 /// @throws ds3d::InvalidArgument for an unknown name or bad options; ds3d::IoError for an
 ///   unreadable file or weights file (naming the path).
 [[nodiscard]] std::shared_ptr<DynamicObjectSource> make_dynamic_source(
