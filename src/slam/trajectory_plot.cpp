@@ -61,7 +61,7 @@ template <class ToPixel>
 void draw_windows(cv::Mat& img, const AteResult& r, const cv::Rect& plot, double t0,
                   const ToPixel& pt) {
   if (r.windows.empty()) return;
-  const cv::Scalar colour(0, 110, 230);  // orange (BGR), apart from the ramp's red end
+  const cv::Scalar colour(200, 0, 200);  // magenta (BGR): no colour of the error ramp
   const AteWindow* worst = &r.windows.front();
   for (const auto& w : r.windows) {
     cv::line(img, pt(w.start, w.rmse), pt(w.end, w.rmse), colour, 2, cv::LINE_AA);
