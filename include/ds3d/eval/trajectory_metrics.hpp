@@ -316,7 +316,8 @@ struct AteWindowResult {
     }
     if (alignment != Alignment::kNone) {
       const auto [rot, trans, c] = align_positions(pe, pg, alignment == Alignment::kSim3);
-      pe = ((c * rot) * pe).colwise() + trans;
+      pe = (c * rot) * pe;
+      pe.colwise() += trans;
     }
     const double sum_sq = (pe - pg).colwise().squaredNorm().sum();
     const double rmse = std::sqrt(sum_sq / static_cast<double>(n));
