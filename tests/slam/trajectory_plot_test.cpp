@@ -165,7 +165,7 @@ TEST(Ds3dEvalCli, WindowTextJsonAndPlot) {
             3)
       << extra;
   EXPECT_NEAR(worst, want.worst_window_rmse, 1e-6);
-  EXPECT_GT(worst, 2 * want.rmse);
+  EXPECT_GT(worst, 1.5 * want.rmse);  // the global figure smears the drift out
   EXPECT_EQ(start, 104.0);
   EXPECT_EQ(end, 104.0 + 63.0 / 64);
 
