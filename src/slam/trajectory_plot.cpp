@@ -71,10 +71,13 @@ void draw_windows(cv::Mat& img, const AteResult& r, const cv::Rect& plot, double
                             fmt("%.1f", worst->start - t0) + "-" + fmt("%.1f", worst->end - t0) +
                             " s)";
   int baseline = 0;
-  const int tw = cv::getTextSize(label, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, &baseline).width;
+  const cv::Size ts = cv::getTextSize(label, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, &baseline);
   cv::Point at = pt(worst->start, worst->rmse) + cv::Point(0, -8);
-  at.x = std::clamp(at.x, plot.x + 4, std::max(plot.x + 4, plot.x + plot.width - tw - 4));
+  at.x = std::clamp(at.x, plot.x + 4, std::max(plot.x + 4, plot.x + plot.width - ts.width - 4));
   at.y = std::max(at.y, plot.y + 34);  // below the panel's title line
+  // White under the label: it sits on the error curve.
+  cv::rectangle(img, at + cv::Point(-2, -ts.height - 2), at + cv::Point(ts.width + 2, baseline),
+                {255, 255, 255}, cv::FILLED);
   text(img, label, at, 0.45, colour);
   text(img, "window rmse (" + std::to_string(r.windows.size()) + " windows)",
        {plot.x + plot.width - 230, plot.y + 18}, 0.45, colour);
