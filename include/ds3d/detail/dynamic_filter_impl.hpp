@@ -11,6 +11,7 @@
 #include <limits>
 #include <numeric>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "ds3d/dynamic/dynamic_filter.hpp"
@@ -205,15 +206,31 @@ struct Region {
   }
 };
 
-}  // namespace detail
+// Column reads of keypoint row `i`: u, v, depth.
+inline float key_u(const Eigen::Ref<const Keypoints3f>& k, std::size_t i) {
+  return k(static_cast<Eigen::Index>(i), 0);
+}
+inline float key_v(const Eigen::Ref<const Keypoints3f>& k, std::size_t i) {
+  return k(static_cast<Eigen::Index>(i), 1);
+}
+inline float key_z(const Eigen::Ref<const Keypoints3f>& k, std::size_t i) {
+  return k(static_cast<Eigen::Index>(i), 2);
+}
 
-inline DynamicFilterResult DynamicFeatureFilter::filter(
-    Eigen::Ref<const Keypoints3f> keypoints, const std::vector<ImageBox>& boxes,
-    const PinholeCamera& camera, const std::optional<Eigen::Vector4f>& support_plane) {
-  constexpr const char* f = "ds3d::DynamicFeatureFilter::filter";
+// Sensor depth noise σ(z) = depth_noise·z² (Khoshelham & Elberink 2012).
+inline float depth_sigma(const DynamicFilterParams& p, float z) { return p.depth_noise * z * z; }
+// Largest depth step within one object at depth z: depth_gap + 3σ(z).
+inline float depth_gap_at(const DynamicFilterParams& p, float z) {
+  return p.depth_gap + 3.0F * depth_sigma(p, z);
+}
+
+// Checks the camera, the support plane and every box; returns the unit support plane.
+inline std::optional<Eigen::Vector4f> check_filter_inputs(
+    const std::vector<ImageBox>& boxes, const PinholeCamera& camera,
+    const std::optional<Eigen::Vector4f>& support_plane, const char* f) {
   camera.validate(f);
   std::optional<Eigen::Vector4f> plane;
-  if (support_plane) plane = detail::unit_plane(*support_plane, f, "support_plane");
+  if (support_plane) plane = unit_plane(*support_plane, f, "support_plane");
   for (std::size_t b = 0; b < boxes.size(); ++b) {
     const ImageBox& x = boxes[b];
     DS3D_CHECK(std::isfinite(x.x_min) && std::isfinite(x.y_min) && std::isfinite(x.x_max) &&
@@ -235,43 +252,377 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(
                  s.half.x(), ", ", s.half.y(), ", ", s.half.z(), ", margin ", s.margin, ")");
     }
   }
+  return plane;
+}
 
+// Per-frame data of the keypoints, shared by every box.
+struct FrameKeypoints {
+  std::vector<std::uint8_t> finite_uv;     // 1 = u and v are finite
+  std::vector<Eigen::Vector3f> ray;        // ∂p/∂z of each depth keypoint (metric gates only)
+  std::vector<std::uint8_t> on_support;    // 1 = on the support plane (with a plane only)
+  std::vector<std::uint8_t> seen_support;  // 1 = kept static on the plane in some box
+  std::vector<std::uint8_t> seen_outside;  // 1 = outside the solid of some box (solids only)
+};
+
+// Flags the keypoints with a finite (u, v); counts the others in `num_non_finite`.
+inline std::vector<std::uint8_t> finite_uv_flags(const Eigen::Ref<const Keypoints3f>& keypoints,
+                                                 std::size_t& num_non_finite) {
   const auto n = static_cast<std::size_t>(keypoints.rows());
-  DynamicFilterResult res;
-  res.dynamic.assign(n, 0);
-  res.gated.assign(n, 0);
   std::vector<std::uint8_t> finite_uv(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     const auto r = static_cast<Eigen::Index>(i);
     finite_uv[i] = std::isfinite(keypoints(r, 0)) && std::isfinite(keypoints(r, 1)) ? 1 : 0;
-    if (finite_uv[i] == 0U) ++res.num_non_finite;
+    if (finite_uv[i] == 0U) ++num_non_finite;
   }
+  return finite_uv;
+}
 
-  const auto sigma = [&](float z) { return params_.depth_noise * z * z; };
-  const auto gap_at = [&](float z) { return params_.depth_gap + 3.0F * sigma(z); };
+// Metric gates (solids, support plane) need each depth keypoint's ray ∂p/∂z = (x/z, y/z, 1),
+// undistorted: computed once per frame, only when a gate is in use.
+inline void metric_gates(const Eigen::Ref<const Keypoints3f>& keypoints,
+                         const PinholeCamera& camera, const std::optional<Eigen::Vector4f>& plane,
+                         bool any_solid, const DynamicFilterParams& params, FrameKeypoints& fk) {
+  const auto n = static_cast<std::size_t>(keypoints.rows());
+  if (any_solid || plane) {
+    fk.ray.assign(n, Eigen::Vector3f::Zero());
+    fk.on_support.assign(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto r = static_cast<Eigen::Index>(i);
+      if (fk.finite_uv[i] == 0U || !valid_depth(keypoints(r, 2))) continue;
+      const Eigen::Vector2d xn = camera.undistort(
+          {(keypoints(r, 0) - camera.cx) / camera.fx, (keypoints(r, 1) - camera.cy) / camera.fy});
+      fk.ray[i] = Eigen::Vector3f(static_cast<float>(xn.x()), static_cast<float>(xn.y()), 1.0F);
+      if (plane) {
+        const float z = keypoints(r, 2);
+        fk.on_support[i] = near_plane(*plane, fk.ray[i] * z, fk.ray[i], depth_sigma(params, z),
+                                      params.support_margin)
+                               ? 1
+                               : 0;
+      }
+    }
+  }
+  fk.seen_support.assign(fk.on_support.empty() ? 0 : n, 0);
+  fk.seen_outside.assign(any_solid ? n : 0, 0);
+}
 
+// The keypoints of one box.
+struct BoxKeypoints {
+  std::vector<std::size_t> in_box;      // finite (u, v) inside the rectangle
+  std::vector<std::size_t> with_depth;  // of which with a depth that passed every gate
+};
+
+// Gathers the keypoints of `box`: rectangle, then, for those with depth, the box's depth range,
+// the support plane and the solid. Gated keypoints are flagged in `gated`.
+inline void gather_box(const Eigen::Ref<const Keypoints3f>& keypoints, const ImageBox& box,
+                       const DynamicFilterParams& params, FrameKeypoints& fk,
+                       std::vector<std::uint8_t>& gated, BoxKeypoints& kb) {
+  const auto n = static_cast<std::size_t>(keypoints.rows());
+  kb.in_box.clear();
+  kb.with_depth.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto r = static_cast<Eigen::Index>(i);
+    if (fk.finite_uv[i] == 0U || !box.contains(keypoints(r, 0), keypoints(r, 1))) continue;
+    kb.in_box.push_back(i);
+    const float z = keypoints(r, 2);
+    if (!valid_depth(z)) continue;
+    // A depth range (3-D box or carried region) excludes everything outside it outright.
+    if (box.has_depth_range() && (z < box.z_min - 3.0F * depth_sigma(params, box.z_min) ||
+                                  z > box.z_max + 3.0F * depth_sigma(params, box.z_max))) {
+      continue;
+    }
+    // Floor texture is static, whichever box it falls in.
+    if (!fk.on_support.empty() && fk.on_support[i] != 0U) {
+      fk.seen_support[i] = 1;
+      continue;
+    }
+    // An oriented 3-D box gates in 3-D: the rectangle and depth range of its projection also
+    // hold the floor and furniture beside and below the object.
+    if (box.solid && !box.solid->contains(fk.ray[i] * z, fk.ray[i], depth_sigma(params, z))) {
+      fk.seen_outside[i] = 1;
+      continue;
+    }
+    kb.with_depth.push_back(i);
+    gated[i] = 1;
+  }
+}
+
+// The foreground of one box, per with_depth entry.
+struct Foreground {
+  Region region;                     // union of the dynamic clusters
+  std::vector<std::uint8_t> member;  // 1 = in a dynamic cluster
+  std::vector<std::uint8_t> noise;   // 1 = HDBSCAN noise
+};
+
+// Image rectangle and depth range of each HDBSCAN cluster, and its median depth.
+struct ClusterStats {
+  std::vector<Region> cr;
+  std::vector<float> med;
+};
+
+// Cluster statistics of a labelling of `with_depth` into `nc` clusters; flags the noise points.
+inline ClusterStats cluster_stats(const Eigen::Ref<const Keypoints3f>& keypoints,
+                                  const std::vector<std::size_t>& with_depth,
+                                  const std::vector<std::int32_t>& labels, std::size_t nc,
+                                  std::vector<std::uint8_t>& noise) {
+  std::vector<std::vector<float>> cz(nc);
+  ClusterStats s;
+  s.cr.resize(nc);
+  for (std::size_t k = 0; k < with_depth.size(); ++k) {
+    if (labels[k] < 0) {
+      noise[k] = 1;
+      continue;
+    }
+    const auto c = static_cast<std::size_t>(labels[k]);
+    cz[c].push_back(key_z(keypoints, with_depth[k]));
+    s.cr[c].add(key_u(keypoints, with_depth[k]), key_v(keypoints, with_depth[k]),
+                key_z(keypoints, with_depth[k]));
+  }
+  s.med.resize(nc);
+  for (std::size_t c = 0; c < nc; ++c) s.med[c] = median_of(cz[c]);
+  return s;
+}
+
+// Depth-continuous groups of clusters: [begin, end) ranges of `by_depth` (clusters by nearest
+// depth).
+struct DepthGroups {
+  std::vector<std::size_t> by_depth;
+  std::vector<std::pair<std::size_t, std::size_t>> groups;
+};
+
+// In order of nearest depth, a cluster joins the current group while its depth range [z0, z1]
+// touches the group's (its near end within gap + 3σ of the group's far end) and its median lies
+// within max_object_depth of the group's near end. A body that HDBSCAN splits into torso, arms
+// and legs at different depths is one chain; the background seen around or through it is not (it
+// lies a gap behind).
+inline DepthGroups depth_groups(const ClusterStats& s, const DynamicFilterParams& params) {
+  const std::vector<Region>& cr = s.cr;
+  const std::vector<float>& med = s.med;
+  const std::size_t nc = cr.size();
+  DepthGroups d;
+  std::vector<std::size_t>& by_depth = d.by_depth;
+  by_depth.resize(nc);
+  std::iota(by_depth.begin(), by_depth.end(), std::size_t{0});
+  std::sort(by_depth.begin(), by_depth.end(), [&](std::size_t a, std::size_t b) {
+    return cr[a].z0 < cr[b].z0 || (cr[a].z0 == cr[b].z0 && a < b);
+  });
+  for (std::size_t g0 = 0; g0 < nc;) {
+    std::size_t g1 = g0 + 1;
+    float far = cr[by_depth[g0]].z1;
+    while (g1 < nc && cr[by_depth[g1]].z0 - far <= depth_gap_at(params, far) &&
+           med[by_depth[g1]] - cr[by_depth[g0]].z0 <= params.max_object_depth) {
+      far = std::max(far, cr[by_depth[g1]].z1);
+      ++g1;
+    }
+    d.groups.emplace_back(g0, g1);
+    g0 = g1;
+  }
+  return d;
+}
+
+// The foreground group: the shallowest that spans `need` pixels of the box height (a detected
+// object fills its box; an occluder in front of part of it does not); if none does, the
+// shallowest.
+inline std::size_t choose_group(const DepthGroups& d, const ClusterStats& s, float need) {
+  for (std::size_t g = 0; g < d.groups.size(); ++g) {
+    float v0 = std::numeric_limits<float>::infinity();
+    float v1 = -v0;
+    for (std::size_t q = d.groups[g].first; q < d.groups[g].second; ++q) {
+      v0 = std::min(v0, s.cr[d.by_depth[q]].v0);
+      v1 = std::max(v1, s.cr[d.by_depth[q]].v1);
+    }
+    if (v1 - v0 >= need) return g;
+  }
+  return 0;
+}
+
+// HDBSCAN foreground of a box's depth keypoints; false (fg untouched) when no cluster is found.
+inline bool hdbscan_foreground(const Eigen::Ref<const Keypoints3f>& keypoints,
+                               const std::vector<std::size_t>& with_depth, const ImageBox& box,
+                               const PinholeCamera& camera, const DynamicFilterParams& params,
+                               BoxOutcome& out, Foreground& fg) {
+  std::vector<float> zs(with_depth.size());
+  for (std::size_t k = 0; k < with_depth.size(); ++k) zs[k] = key_z(keypoints, with_depth[k]);
+  const double zmed = median_of(zs);
+  RowMatrixXd pts(static_cast<Eigen::Index>(with_depth.size()), 3);
+  for (std::size_t k = 0; k < with_depth.size(); ++k) {
+    const auto r = static_cast<Eigen::Index>(k);
+    pts(r, 0) = key_u(keypoints, with_depth[k]);
+    pts(r, 1) = key_v(keypoints, with_depth[k]);
+    pts(r, 2) = key_z(keypoints, with_depth[k]);
+  }
+  HdbscanParams hp;
+  hp.min_cluster_size = params.min_cluster_size;
+  hp.min_samples = params.min_samples;
+  // Pixels → metres at the median depth: clustering becomes isotropic in metric space.
+  const HdbscanResult h = hdbscan(pts, hp, {zmed / camera.fx, zmed / camera.fy, 1.0});
+  out.num_clusters = h.num_clusters;
+  if (h.num_clusters == 0) return false;
+  const std::vector<std::int32_t>& labels = h.labels;
+  const auto nc = static_cast<std::size_t>(h.num_clusters);
+  const ClusterStats s = cluster_stats(keypoints, with_depth, labels, nc, fg.noise);
+  const DepthGroups d = depth_groups(s, params);
+  const float need = params.min_vertical_span * box.height();
+  const std::size_t chosen = choose_group(d, s, need);
+  std::vector<std::uint8_t> dyn_cluster(nc, 0);
+  for (std::size_t q = d.groups[chosen].first; q < d.groups[chosen].second; ++q) {
+    const std::size_t c = d.by_depth[q];
+    dyn_cluster[c] = 1;
+    fg.region.u0 = std::min(fg.region.u0, s.cr[c].u0);
+    fg.region.u1 = std::max(fg.region.u1, s.cr[c].u1);
+    fg.region.v0 = std::min(fg.region.v0, s.cr[c].v0);
+    fg.region.v1 = std::max(fg.region.v1, s.cr[c].v1);
+    fg.region.z0 = std::min(fg.region.z0, s.cr[c].z0);
+    fg.region.z1 = std::max(fg.region.z1, s.cr[c].z1);
+  }
+  for (std::size_t k = 0; k < with_depth.size(); ++k) {
+    if (labels[k] >= 0 && dyn_cluster[static_cast<std::size_t>(labels[k])] != 0U) {
+      fg.member[k] = 1;
+    }
+  }
+  return true;
+}
+
+// Depth-gap split: sorted depths; groups end at gaps wider than gap + 3σ. The foreground is the
+// first group holding at least a fifth of the points (or min_samples), so that a stray flying
+// pixel in front does not become "the object".
+inline void depth_gap_foreground(const Eigen::Ref<const Keypoints3f>& keypoints,
+                                 const std::vector<std::size_t>& with_depth,
+                                 const DynamicFilterParams& params, Foreground& fg) {
+  const auto kz = [&](std::size_t i) { return key_z(keypoints, i); };
+  std::vector<std::size_t> order(with_depth.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    const float za = kz(with_depth[a]);
+    const float zb = kz(with_depth[b]);
+    return za < zb || (za == zb && a < b);
+  });
+  const std::size_t need = std::min(
+      order.size(),
+      std::max<std::size_t>(static_cast<std::size_t>(params.min_samples), (order.size() + 4) / 5));
+  std::size_t begin = 0;
+  while (begin < order.size()) {
+    std::size_t end = begin + 1;
+    while (end < order.size() && kz(with_depth[order[end]]) - kz(with_depth[order[end - 1]]) <=
+                                     depth_gap_at(params, kz(with_depth[order[end - 1]]))) {
+      ++end;
+    }
+    if (end - begin >= need || end == order.size()) {
+      for (std::size_t k = begin; k < end; ++k) {
+        fg.member[order[k]] = 1;
+        const std::size_t i = with_depth[order[k]];
+        fg.region.add(key_u(keypoints, i), key_v(keypoints, i), kz(i));
+      }
+      break;
+    }
+    begin = end;
+  }
+  std::fill(fg.noise.begin(), fg.noise.end(), 0);
+}
+
+// The foreground of a box: HDBSCAN clusters, or the depth-gap fallback when the box has too few
+// depth keypoints or HDBSCAN finds no cluster (sets out.num_clusters and out.fallback).
+inline Foreground box_foreground(const Eigen::Ref<const Keypoints3f>& keypoints,
+                                 const std::vector<std::size_t>& with_depth, const ImageBox& box,
+                                 const PinholeCamera& camera, const DynamicFilterParams& params,
+                                 BoxOutcome& out) {
+  Foreground fg;
+  fg.member.assign(with_depth.size(), 0);
+  fg.noise.assign(with_depth.size(), 0);
+  bool use_fallback = with_depth.size() < static_cast<std::size_t>(params.min_keypoints);
+  if (!use_fallback) {
+    use_fallback = !hdbscan_foreground(keypoints, with_depth, box, camera, params, out, fg);
+  }
+  if (use_fallback && !with_depth.empty()) {
+    depth_gap_foreground(keypoints, with_depth, params, fg);
+    out.fallback = true;
+  }
+  return fg;
+}
+
+// Mark: dynamic clusters; noise in the foreground's depth range and, unless the box has its own
+// depth range (then box + range already gate in 3-D), in its rectangle; keypoints without depth
+// in the rectangle (or anywhere in the box when no depth was seen at all). Returns the number of
+// keypoints of this box marked dynamic.
+inline int mark_box(const Eigen::Ref<const Keypoints3f>& keypoints, const BoxKeypoints& kb,
+                    const Foreground& f, const ImageBox& box, const DynamicFilterParams& params,
+                    bool saw_depth, DynamicFilterResult& res) {
+  const Region& fg = f.region;
+  const auto ku = [&](std::size_t i) { return key_u(keypoints, i); };
+  const auto kv = [&](std::size_t i) { return key_v(keypoints, i); };
+  const auto kz = [&](std::size_t i) { return key_z(keypoints, i); };
+  int marked = 0;
+  const auto mark = [&](std::size_t i) {
+    if (res.dynamic[i] == 0U) {
+      res.dynamic[i] = 1;
+      ++res.num_dynamic;
+    }
+    ++marked;
+  };
+  for (std::size_t k = 0; k < kb.with_depth.size(); ++k) {
+    const std::size_t i = kb.with_depth[k];
+    if (f.member[k] != 0U) {
+      mark(i);
+    } else if (f.noise[k] != 0U && !fg.empty() &&
+               (box.has_depth_range() || fg.contains(ku(i), kv(i))) &&
+               kz(i) >= fg.z0 - 3.0F * depth_sigma(params, fg.z0) &&
+               kz(i) <= fg.z1 + 3.0F * depth_sigma(params, fg.z1)) {
+      mark(i);
+    }
+  }
+  for (const std::size_t i : kb.in_box) {
+    if (valid_depth(kz(i))) continue;
+    if ((!saw_depth && !box.has_depth_range()) || (!fg.empty() && fg.contains(ku(i), kv(i)))) {
+      mark(i);
+    }
+  }
+  return marked;
+}
+
+// The dynamic region of a box (its foreground's rectangle and depth range), to carry to the
+// next frame; it keeps the box's score, label and solid.
+inline ImageBox foreground_region(const Region& fg, const ImageBox& box) {
+  ImageBox region;
+  region.x_min = fg.u0;
+  region.y_min = fg.v0;
+  region.x_max = fg.u1;
+  region.y_max = fg.v1;
+  region.z_min = fg.z0;
+  region.z_max = fg.z1;
+  region.score = box.score;
+  region.label = box.label;
+  region.solid = box.solid;
+  return region;
+}
+
+}  // namespace detail
+
+inline std::vector<std::pair<ImageBox, int>> DynamicFeatureFilter::work_boxes(
+    const std::vector<ImageBox>& boxes, const PinholeCamera& camera,
+    std::size_t& num_ignored) const {
   const float img_u1 = static_cast<float>(camera.width) - 0.5F;
   const float img_v1 = static_cast<float>(camera.height) - 0.5F;
-
-  // Boxes to process: detections (grown, clipped), then carried regions no detection covers.
   std::vector<std::pair<ImageBox, int>> work;  // box, age (-1 = detection)
   for (const ImageBox& x : boxes) {
     if (x.score < params_.min_score) {
-      ++res.num_ignored_boxes;
+      ++num_ignored;
       continue;
     }
-    ImageBox g = x;
     const float mu = params_.box_margin * x.width();
     const float mv = params_.box_margin * x.height();
-    g.x_min = std::max(x.x_min - mu, -0.5F);
-    g.y_min = std::max(x.y_min - mv, -0.5F);
-    g.x_max = std::min(x.x_max + mu, img_u1);
-    g.y_max = std::min(x.y_max + mv, img_v1);
-    if (!(g.x_max > g.x_min) || !(g.y_max > g.y_min)) {
-      ++res.num_ignored_boxes;
+    const float x_min = std::max(x.x_min - mu, -0.5F);
+    const float y_min = std::max(x.y_min - mv, -0.5F);
+    const float x_max = std::min(x.x_max + mu, img_u1);
+    const float y_max = std::min(x.y_max + mv, img_v1);
+    if (!(x_max > x_min) || !(y_max > y_min)) {
+      ++num_ignored;
       continue;
     }
-    work.emplace_back(g, -1);
+    // Copied from `x` in place (GCC 12 warns, wrongly, on copying a local with an empty solid).
+    ImageBox& g = work.emplace_back(x, -1).first;
+    g.x_min = x_min;
+    g.y_min = y_min;
+    g.x_max = x_max;
+    g.y_max = y_max;
   }
   const std::size_t num_detections = work.size();
   for (const Carried& c : carried_) {
@@ -295,257 +646,60 @@ inline DynamicFilterResult DynamicFeatureFilter::filter(
     if (g.solid) g.solid->margin += params_.carry_motion;
     if (g.x_max > g.x_min && g.y_max > g.y_min) work.emplace_back(g, c.age);
   }
+  return work;
+}
 
-  // Metric gates (solids, support plane) need each depth keypoint's ray ∂p/∂z = (x/z, y/z, 1),
-  // undistorted: computed once per frame, only when a gate is in use.
+inline DynamicFilterResult DynamicFeatureFilter::filter(
+    Eigen::Ref<const Keypoints3f> keypoints, const std::vector<ImageBox>& boxes,
+    const PinholeCamera& camera, const std::optional<Eigen::Vector4f>& support_plane) {
+  constexpr const char* f = "ds3d::DynamicFeatureFilter::filter";
+  const std::optional<Eigen::Vector4f> plane =
+      detail::check_filter_inputs(boxes, camera, support_plane, f);
+
+  const auto n = static_cast<std::size_t>(keypoints.rows());
+  DynamicFilterResult res;
+  res.dynamic.assign(n, 0);
+  res.gated.assign(n, 0);
+  detail::FrameKeypoints fk;
+  fk.finite_uv = detail::finite_uv_flags(keypoints, res.num_non_finite);
+
+  // Boxes to process: detections (grown, clipped), then carried regions no detection covers.
+  const std::vector<std::pair<ImageBox, int>> work =
+      work_boxes(boxes, camera, res.num_ignored_boxes);
   const bool any_solid = std::any_of(work.begin(), work.end(),
                                      [](const auto& w) { return w.first.solid.has_value(); });
-  std::vector<Eigen::Vector3f> ray;
-  std::vector<std::uint8_t> on_support;
-  if (any_solid || plane) {
-    ray.assign(n, Eigen::Vector3f::Zero());
-    on_support.assign(n, 0);
-    for (std::size_t i = 0; i < n; ++i) {
-      const auto r = static_cast<Eigen::Index>(i);
-      if (finite_uv[i] == 0U || !detail::valid_depth(keypoints(r, 2))) continue;
-      const Eigen::Vector2d xn = camera.undistort(
-          {(keypoints(r, 0) - camera.cx) / camera.fx, (keypoints(r, 1) - camera.cy) / camera.fy});
-      ray[i] = Eigen::Vector3f(static_cast<float>(xn.x()), static_cast<float>(xn.y()), 1.0F);
-      if (plane) {
-        const float z = keypoints(r, 2);
-        on_support[i] =
-            detail::near_plane(*plane, ray[i] * z, ray[i], sigma(z), params_.support_margin) ? 1
-                                                                                             : 0;
-      }
-    }
-  }
-  std::vector<std::uint8_t> seen_support(on_support.empty() ? 0 : n, 0);
-  std::vector<std::uint8_t> seen_outside(any_solid ? n : 0, 0);
+  detail::metric_gates(keypoints, camera, plane, any_solid, params_, fk);
 
   std::vector<Carried> next;
-  std::vector<std::size_t> in_box;
-  std::vector<std::size_t> with_depth;
-  std::vector<std::int32_t> labels;
+  detail::BoxKeypoints kb;
   for (const auto& [box, age] : work) {
     BoxOutcome out;
     out.box = box;
     out.carried = age >= 0;
-    in_box.clear();
-    with_depth.clear();
-    for (std::size_t i = 0; i < n; ++i) {
-      const auto r = static_cast<Eigen::Index>(i);
-      if (finite_uv[i] == 0U || !box.contains(keypoints(r, 0), keypoints(r, 1))) continue;
-      in_box.push_back(i);
-      const float z = keypoints(r, 2);
-      if (!detail::valid_depth(z)) continue;
-      // A depth range (3-D box or carried region) excludes everything outside it outright.
-      if (box.has_depth_range() &&
-          (z < box.z_min - 3.0F * sigma(box.z_min) || z > box.z_max + 3.0F * sigma(box.z_max))) {
-        continue;
-      }
-      // Floor texture is static, whichever box it falls in.
-      if (!on_support.empty() && on_support[i] != 0U) {
-        seen_support[i] = 1;
-        continue;
-      }
-      // An oriented 3-D box gates in 3-D: the rectangle and depth range of its projection also
-      // hold the floor and furniture beside and below the object.
-      if (box.solid && !box.solid->contains(ray[i] * z, ray[i], sigma(z))) {
-        seen_outside[i] = 1;
-        continue;
-      }
-      with_depth.push_back(i);
-      res.gated[i] = 1;
-    }
-    out.num_keypoints = static_cast<int>(in_box.size());
-    out.num_with_depth = static_cast<int>(with_depth.size());
-    const auto kz = [&](std::size_t i) { return keypoints(static_cast<Eigen::Index>(i), 2); };
-    const auto ku = [&](std::size_t i) { return keypoints(static_cast<Eigen::Index>(i), 0); };
-    const auto kv = [&](std::size_t i) { return keypoints(static_cast<Eigen::Index>(i), 1); };
-
-    detail::Region fg;                 // union of the dynamic clusters
-    std::vector<std::uint8_t> member;  // per with_depth entry: 1 = in a dynamic cluster
-    std::vector<std::uint8_t> noise;   // per with_depth entry: 1 = HDBSCAN noise
-    member.assign(with_depth.size(), 0);
-    noise.assign(with_depth.size(), 0);
-    bool use_fallback = with_depth.size() < static_cast<std::size_t>(params_.min_keypoints);
-    if (!use_fallback) {
-      std::vector<float> zs(with_depth.size());
-      for (std::size_t k = 0; k < with_depth.size(); ++k) zs[k] = kz(with_depth[k]);
-      const double zmed = detail::median_of(zs);
-      RowMatrixXd pts(static_cast<Eigen::Index>(with_depth.size()), 3);
-      for (std::size_t k = 0; k < with_depth.size(); ++k) {
-        const auto r = static_cast<Eigen::Index>(k);
-        pts(r, 0) = ku(with_depth[k]);
-        pts(r, 1) = kv(with_depth[k]);
-        pts(r, 2) = kz(with_depth[k]);
-      }
-      HdbscanParams hp;
-      hp.min_cluster_size = params_.min_cluster_size;
-      hp.min_samples = params_.min_samples;
-      // Pixels → metres at the median depth: clustering becomes isotropic in metric space.
-      const HdbscanResult h = hdbscan(pts, hp, {zmed / camera.fx, zmed / camera.fy, 1.0});
-      out.num_clusters = h.num_clusters;
-      labels = h.labels;
-      if (h.num_clusters == 0) {
-        use_fallback = true;
-      } else {
-        const auto nc = static_cast<std::size_t>(h.num_clusters);
-        std::vector<std::vector<float>> cz(nc);
-        std::vector<detail::Region> cr(nc);
-        for (std::size_t k = 0; k < with_depth.size(); ++k) {
-          if (labels[k] < 0) {
-            noise[k] = 1;
-            continue;
-          }
-          const auto c = static_cast<std::size_t>(labels[k]);
-          cz[c].push_back(kz(with_depth[k]));
-          cr[c].add(ku(with_depth[k]), kv(with_depth[k]), kz(with_depth[k]));
-        }
-        std::vector<float> med(nc);
-        for (std::size_t c = 0; c < nc; ++c) med[c] = detail::median_of(cz[c]);
-        // Depth-continuous groups of clusters: in order of nearest depth, a cluster joins the
-        // current group while its depth range [z0, z1] touches the group's (its near end within
-        // gap + 3σ of the group's far end) and its median lies within max_object_depth of the
-        // group's near end. A body that HDBSCAN splits into torso, arms and legs at different
-        // depths is one chain; the background seen around or through it is not (it lies a gap
-        // behind). The foreground is the shallowest group that spans enough of the box height (a
-        // detected object fills its box; an occluder in front of part of it does not); if none
-        // does, the shallowest group.
-        std::vector<std::size_t> by_depth(nc);
-        std::iota(by_depth.begin(), by_depth.end(), std::size_t{0});
-        std::sort(by_depth.begin(), by_depth.end(), [&](std::size_t a, std::size_t b) {
-          return cr[a].z0 < cr[b].z0 || (cr[a].z0 == cr[b].z0 && a < b);
-        });
-        std::vector<std::pair<std::size_t, std::size_t>> groups;  // [begin, end) in by_depth
-        for (std::size_t g0 = 0; g0 < nc;) {
-          std::size_t g1 = g0 + 1;
-          float far = cr[by_depth[g0]].z1;
-          while (g1 < nc && cr[by_depth[g1]].z0 - far <= gap_at(far) &&
-                 med[by_depth[g1]] - cr[by_depth[g0]].z0 <= params_.max_object_depth) {
-            far = std::max(far, cr[by_depth[g1]].z1);
-            ++g1;
-          }
-          groups.emplace_back(g0, g1);
-          g0 = g1;
-        }
-        const float need = params_.min_vertical_span * box.height();
-        std::size_t chosen = 0;
-        for (std::size_t g = 0; g < groups.size(); ++g) {
-          float v0 = std::numeric_limits<float>::infinity();
-          float v1 = -v0;
-          for (std::size_t q = groups[g].first; q < groups[g].second; ++q) {
-            v0 = std::min(v0, cr[by_depth[q]].v0);
-            v1 = std::max(v1, cr[by_depth[q]].v1);
-          }
-          if (v1 - v0 >= need) {
-            chosen = g;
-            break;
-          }
-        }
-        std::vector<std::uint8_t> dyn_cluster(nc, 0);
-        for (std::size_t q = groups[chosen].first; q < groups[chosen].second; ++q) {
-          const std::size_t c = by_depth[q];
-          dyn_cluster[c] = 1;
-          fg.u0 = std::min(fg.u0, cr[c].u0);
-          fg.u1 = std::max(fg.u1, cr[c].u1);
-          fg.v0 = std::min(fg.v0, cr[c].v0);
-          fg.v1 = std::max(fg.v1, cr[c].v1);
-          fg.z0 = std::min(fg.z0, cr[c].z0);
-          fg.z1 = std::max(fg.z1, cr[c].z1);
-        }
-        for (std::size_t k = 0; k < with_depth.size(); ++k) {
-          if (labels[k] >= 0 && dyn_cluster[static_cast<std::size_t>(labels[k])] != 0U) {
-            member[k] = 1;
-          }
-        }
-      }
-    }
-    if (use_fallback && !with_depth.empty()) {
-      // Depth-gap split: sorted depths; groups end at gaps wider than gap + 3σ. The foreground is
-      // the first group holding at least a fifth of the points (or min_samples), so that a stray
-      // flying pixel in front does not become "the object".
-      std::vector<std::size_t> order(with_depth.size());
-      std::iota(order.begin(), order.end(), std::size_t{0});
-      std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-        const float za = kz(with_depth[a]);
-        const float zb = kz(with_depth[b]);
-        return za < zb || (za == zb && a < b);
-      });
-      const std::size_t need = std::min(
-          order.size(), std::max<std::size_t>(static_cast<std::size_t>(params_.min_samples),
-                                              (order.size() + 4) / 5));
-      std::size_t begin = 0;
-      while (begin < order.size()) {
-        std::size_t end = begin + 1;
-        while (end < order.size() && kz(with_depth[order[end]]) - kz(with_depth[order[end - 1]]) <=
-                                         gap_at(kz(with_depth[order[end - 1]]))) {
-          ++end;
-        }
-        if (end - begin >= need || end == order.size()) {
-          for (std::size_t k = begin; k < end; ++k) {
-            member[order[k]] = 1;
-            const std::size_t i = with_depth[order[k]];
-            fg.add(ku(i), kv(i), kz(i));
-          }
-          break;
-        }
-        begin = end;
-      }
-      std::fill(noise.begin(), noise.end(), 0);
-      out.fallback = true;
-    }
-
-    // Mark: dynamic clusters; noise in the foreground's depth range and, unless the box has its
-    // own depth range (then box + range already gate in 3-D), in its rectangle; keypoints
-    // without depth in the rectangle (or anywhere in the box when no depth was seen at all).
-    int marked = 0;
-    const auto mark = [&](std::size_t i) {
-      if (res.dynamic[i] == 0U) {
-        res.dynamic[i] = 1;
-        ++res.num_dynamic;
-      }
-      ++marked;
-    };
-    for (std::size_t k = 0; k < with_depth.size(); ++k) {
-      const std::size_t i = with_depth[k];
-      if (member[k] != 0U) {
-        mark(i);
-      } else if (noise[k] != 0U && !fg.empty() &&
-                 (box.has_depth_range() || fg.contains(ku(i), kv(i))) &&
-                 kz(i) >= fg.z0 - 3.0F * sigma(fg.z0) && kz(i) <= fg.z1 + 3.0F * sigma(fg.z1)) {
-        mark(i);
-      }
-    }
-    const bool saw_depth = out.num_with_depth > 0;
-    for (const std::size_t i : in_box) {
-      if (detail::valid_depth(kz(i))) continue;
-      if ((!saw_depth && !box.has_depth_range()) || (!fg.empty() && fg.contains(ku(i), kv(i)))) {
-        mark(i);
-      }
-    }
-    out.num_dynamic = marked;
-    if (!fg.empty()) {
-      out.z_front = fg.z0;
-      out.z_back = fg.z1;
-      ImageBox region;
-      region.x_min = fg.u0;
-      region.y_min = fg.v0;
-      region.x_max = fg.u1;
-      region.y_max = fg.v1;
-      region.z_min = fg.z0;
-      region.z_max = fg.z1;
-      region.score = box.score;
-      region.label = box.label;
-      region.solid = box.solid;
+    detail::gather_box(keypoints, box, params_, fk, res.gated, kb);
+    out.num_keypoints = static_cast<int>(kb.in_box.size());
+    out.num_with_depth = static_cast<int>(kb.with_depth.size());
+    const detail::Foreground fg =
+        detail::box_foreground(keypoints, kb.with_depth, box, camera, params_, out);
+    out.num_dynamic =
+        detail::mark_box(keypoints, kb, fg, box, params_, out.num_with_depth > 0, res);
+    if (!fg.region.empty()) {
+      out.z_front = fg.region.z0;
+      out.z_back = fg.region.z1;
       const int new_age = age < 0 ? 0 : age + 1;
-      if (new_age < params_.carry_frames) next.push_back({region, new_age});
+      if (new_age < params_.carry_frames) {
+        next.push_back({detail::foreground_region(fg.region, box), new_age});
+      }
     }
     res.boxes.push_back(out);
   }
   carried_ = std::move(next);
-  for (std::size_t i = 0; i < seen_support.size(); ++i) res.num_on_support += seen_support[i];
-  for (std::size_t i = 0; i < seen_outside.size(); ++i) res.num_outside_solid += seen_outside[i];
+  for (std::size_t i = 0; i < fk.seen_support.size(); ++i) {
+    res.num_on_support += fk.seen_support[i];
+  }
+  for (std::size_t i = 0; i < fk.seen_outside.size(); ++i) {
+    res.num_outside_solid += fk.seen_outside[i];
+  }
   return res;
 }
 

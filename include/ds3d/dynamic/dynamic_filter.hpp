@@ -46,13 +46,14 @@
 #include <cstdint>
 #include <limits>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "ds3d/camera.hpp"
-#include "ds3d/errors.hpp"
 #include "ds3d/cluster/hdbscan.hpp"
+#include "ds3d/errors.hpp"
 
 namespace ds3d {
 
@@ -233,6 +234,12 @@ class DynamicFeatureFilter {
     ImageBox region;
     int age = 0;  // frames since the region was last backed by a detection
   };
+  // Boxes of one frame to process: detections (grown by box_margin, clipped to the image), then
+  // the carried regions that no detection overlaps (grown by carry_motion), with their age (-1 =
+  // detection). Counts the detections ignored (low score, outside the image) in `num_ignored`.
+  [[nodiscard]] std::vector<std::pair<ImageBox, int>> work_boxes(const std::vector<ImageBox>& boxes,
+                                                                 const PinholeCamera& camera,
+                                                                 std::size_t& num_ignored) const;
   DynamicFilterParams params_;
   std::vector<Carried> carried_;
 };
