@@ -8,7 +8,7 @@ set -euo pipefail
 
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git
-  libeigen3-dev libnanoflann-dev libopencv-dev libceres-dev
+  libeigen3-dev libnanoflann-dev libopencv-dev libceres-dev libyaml-cpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   pybind11-dev python3-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib
   python3-setuptools python3-pip python3-wheel python3-venv
