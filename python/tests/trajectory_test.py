@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
-"""Trajectory I/O, ATE/RPE against a fixture's expected numbers, bad arguments raise ValueError."""
+"""Trajectory I/O, ATE/RPE against a fixture's expected numbers, the local ATE per window, bad
+arguments raise ValueError."""
 import json
 import pathlib
 
@@ -52,3 +53,34 @@ def test_bad_arguments_raise():
         ds3d.evaluate_rpe(t, t, delta_unit="km")
     with pytest.raises(RuntimeError):
         ds3d.read_tum_trajectory("/nonexistent/gt.txt")
+
+
+def test_local_ate_per_window():
+    # 10 s at 64 Hz along a curve; 20 poses 0.1 m off in [4 s, 5 s)
+    n = 640
+    gt = np.zeros((n, 8))
+    gt[:, 0] = 100 + np.arange(n) / 64
+    a = 0.01 * np.arange(n)
+    gt[:, 1], gt[:, 2], gt[:, 3] = np.cos(a), np.sin(a), 0.002 * np.arange(n)
+    gt[:, 7] = 1.0
+    est = gt.copy()
+    est[256:276, 1] += 0.1
+    r = ds3d.evaluate_ate(gt, est, window=1.0)
+    assert len(r.windows) == 10 and r.num_short_windows == 0
+    rmse = [w.rmse for w in r.windows]
+    assert max(rmse) == r.worst_window_rmse == r.windows[4].rmse
+    assert r.worst_window_rmse > 2 * r.rmse
+    assert all(x < 1e-9 for k, x in enumerate(rmse) if k != 4)
+    w = r.windows[4]
+    assert (w.start, w.end, w.pairs) == (104.0, 104.0 + 63 / 64, 64)
+    with pytest.raises(AttributeError):
+        w.rmse = 0.0  # read-only
+    # one window longer than the sequence is the global ATE
+    one = ds3d.evaluate_ate(gt, est, window=100.0)
+    assert len(one.windows) == 1
+    assert one.windows[0].rmse == pytest.approx(one.rmse, rel=1e-9)
+    off = ds3d.evaluate_ate(gt, est)
+    assert off.windows == [] and off.worst_window_rmse == 0.0
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="window"):
+            ds3d.evaluate_ate(gt, est, window=bad)

@@ -55,6 +55,34 @@ double tick_step(double range, int target) {
   return 10 * p;
 }
 
+// The local ATE (AteResult::windows) in the error-over-time panel: each window's RMSE as a
+// horizontal segment over its span, and a label at the worst one. `pt` maps (t, error) to pixels.
+template <class ToPixel>
+void draw_windows(cv::Mat& img, const AteResult& r, const cv::Rect& plot, double t0,
+                  const ToPixel& pt) {
+  if (r.windows.empty()) return;
+  const cv::Scalar colour(200, 0, 200);  // magenta (BGR): no colour of the error ramp
+  const AteWindow* worst = &r.windows.front();
+  for (const auto& w : r.windows) {
+    cv::line(img, pt(w.start, w.rmse), pt(w.end, w.rmse), colour, 2, cv::LINE_AA);
+    if (w.rmse > worst->rmse) worst = &w;
+  }
+  const std::string label = "worst window rmse " + fmt("%.4f", worst->rmse) + " (" +
+                            fmt("%.1f", worst->start - t0) + "-" + fmt("%.1f", worst->end - t0) +
+                            " s)";
+  int baseline = 0;
+  const cv::Size ts = cv::getTextSize(label, cv::FONT_HERSHEY_SIMPLEX, 0.45, 1, &baseline);
+  cv::Point at = pt(worst->start, worst->rmse) + cv::Point(0, -8);
+  at.x = std::clamp(at.x, plot.x + 4, std::max(plot.x + 4, plot.x + plot.width - ts.width - 4));
+  at.y = std::max(at.y, plot.y + 34);  // below the panel's title line
+  // White under the label: it sits on the error curve.
+  cv::rectangle(img, at + cv::Point(-2, -ts.height - 2), at + cv::Point(ts.width + 2, baseline),
+                {255, 255, 255}, cv::FILLED);
+  text(img, label, at, 0.45, colour);
+  text(img, "window rmse (" + std::to_string(r.windows.size()) + " windows)",
+       {plot.x + plot.width - 230, plot.y + 18}, 0.45, colour);
+}
+
 }  // namespace
 
 void AtePlotOptions::validate() const {
@@ -152,7 +180,9 @@ cv::Mat render_ate_plot(const Trajectory& gt, const AteResult& r, const AtePlotO
   cv::rectangle(img, plot, {200, 200, 200});
   const double t0 = r.matches.front().t_gt;
   const double t1 = std::max(r.matches.back().t_gt, t0 + 1e-6);
-  const double ytop = emax * 1.08;
+  // A window RMSE stays below the largest error (its own alignment is optimal for it); max() only
+  // guards rounding.
+  const double ytop = std::max(emax, r.worst_window_rmse) * 1.08;
   const auto pt = [&](double t, double e) {
     return cv::Point(static_cast<int>(std::lround(plot.x + (t - t0) / (t1 - t0) * plot.width)),
                      static_cast<int>(std::lround(plot.y + plot.height - e / ytop * plot.height)));
@@ -177,6 +207,7 @@ cv::Mat render_ate_plot(const Trajectory& gt, const AteResult& r, const AtePlotO
   cv::line(img, pt(t0, r.rmse), pt(t1, r.rmse), {60, 60, 200}, 1, cv::LINE_AA);
   text(img, "rmse " + fmt("%.4f", r.rmse), pt(t1, r.rmse) + cv::Point(-110, -6), 0.45,
        {60, 60, 200});
+  draw_windows(img, r, plot, t0, pt);
   return img;
 }
 

@@ -2,10 +2,12 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // ds3d-eval: ATE and RPE of a TUM-format estimate against ground truth, with the numbers of the
 // TUM benchmark scripts (evaluate_ate.py / evaluate_rpe.py --verbose) or one JSON object.
+// ate --window W adds the local ATE: the pairs cut into W-second windows, each aligned alone.
 //   ds3d-eval ate GT EST [--max-difference 0.02] [--offset 0] [--scale 1] [--align se3|sim3|none]
-//                        [--plot out.png] [--json]
+//                        [--window SECONDS] [--plot out.png] [--json]
 //   ds3d-eval rpe GT EST [--delta 1] [--delta-unit s|f|m|rad|deg] [--offset 0] [--scale 1]
 //                        [--all-pairs] [--max-pairs 10000] [--evo] [--seed 1] [--json]
+#include <algorithm>
 #include <cstdio>
 #include <exception>
 #include <iostream>
@@ -26,7 +28,8 @@ using ds3d::detail::json_number;
 int usage(const std::string& msg) {
   std::cerr << "ds3d-eval: " << msg << "\n"
             << "usage: ds3d-eval ate GT EST [--max-difference 0.02] [--offset 0] [--scale 1]\n"
-            << "                 [--align se3|sim3|none] [--plot out.png] [--json]\n"
+            << "                 [--align se3|sim3|none] [--window SECONDS] [--plot out.png]\n"
+            << "                 [--json]\n"
             << "       ds3d-eval rpe GT EST [--delta 1] [--delta-unit s|f|m|rad|deg] [--offset 0]\n"
             << "                 [--scale 1] [--all-pairs] [--max-pairs 10000] [--evo] [--seed 1]\n"
             << "                 [--json]\n";
@@ -58,6 +61,35 @@ void print_stats(const std::string& prefix, const ds3d::ErrorStats& s, const cha
   for (const auto& [name, value] : rows) print_line((prefix + "." + name).c_str(), value, unit);
 }
 
+/// `,"windows":[...],"worst_window_rmse":X,"num_short_windows":K` for the ATE object.
+std::string windows_json(const ds3d::AteResult& r) {
+  std::string out = ",\"windows\":[";
+  for (std::size_t k = 0; k < r.windows.size(); ++k) {
+    const auto& w = r.windows[k];
+    out += std::string(k ? "," : "") + "{\"start\":" + json_number(w.start) +
+           ",\"end\":" + json_number(w.end) + ",\"pairs\":" + std::to_string(w.pairs) +
+           ",\"rmse\":" + json_number(w.rmse) + "}";
+  }
+  return out + "],\"worst_window_rmse\":" + json_number(r.worst_window_rmse) +
+         ",\"num_short_windows\":" + std::to_string(r.num_short_windows);
+}
+
+/// The two local-ATE lines after the TUM ones.
+void print_windows(const ds3d::AteResult& r, double window) {
+  std::printf("windows %zu (%g s each", r.windows.size(), window);
+  if (r.num_short_windows > 0) std::printf(", %zu skipped with < 3 pairs", r.num_short_windows);
+  std::printf(")\n");
+  const auto worst = std::max_element(
+      r.windows.begin(), r.windows.end(),
+      [](const ds3d::AteWindow& a, const ds3d::AteWindow& b) { return a.rmse < b.rmse; });
+  if (worst == r.windows.end()) {
+    std::printf("worst_window_rmse %f m (no window with >= 3 pairs)\n", r.worst_window_rmse);
+  } else {
+    std::printf("worst_window_rmse %f m (start %f end %f)\n", worst->rmse, worst->start,
+                worst->end);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -87,6 +119,8 @@ int main(int argc, char** argv) {
         ate.max_difference = to_double(a, value());
       } else if (cmd == "ate" && a == "--align") {
         ate.alignment = ds3d::parse_alignment(value());
+      } else if (cmd == "ate" && a == "--window") {
+        ate.window = to_double(a, value());
       } else if (cmd == "ate" && a == "--plot") {
         plot = value();
       } else if (cmd == "rpe" && a == "--delta") {
@@ -132,14 +166,16 @@ int main(int argc, char** argv) {
         out += "],\"translation\":[";
         for (int k = 0; k < 3; ++k) out += (k ? "," : "") + json_number(r.translation(k));
         out += "],\"scale\":" + json_number(r.scale_factor) +
-               ",\"convention\":\"p_gt ~= scale * rotation @ p_est + translation\"}}";
-        std::cout << out << "\n";
+               ",\"convention\":\"p_gt ~= scale * rotation @ p_est + translation\"}";
+        if (ate.window > 0) out += windows_json(r);
+        std::cout << out << "}\n";
       } else {
         std::printf("compared_pose_pairs %zu pairs\n", r.compared_pose_pairs);
         print_stats("absolute_translational_error",
                     ds3d::ErrorStats{r.rmse, r.mean, r.median, r.std, r.min, r.max}, "m");
         if (ate.alignment == ds3d::Alignment::kSim3)
           print_line("alignment.scale", r.scale_factor, "");
+        if (ate.window > 0) print_windows(r, ate.window);
       }
     } else {
       const auto gt = ds3d::read_tum_trajectory(gt_path);

@@ -314,6 +314,115 @@ TEST(Ate, OffsetShiftsTheAssociation) {
   EXPECT_LT(r.rmse, 1e-9);
 }
 
+// ---- local ATE per window ---------------------------------------------------------------------
+
+// 640 poses at 64 Hz (10 s, stamps exact in binary so no pose sits on a rounding boundary).
+TEST(AteWindow, LocalDriftShowsInOneWindowOnly) {
+  const auto gt = helix(640, 1.0 / 64);
+  auto est = gt;
+  for (int i = 256; i < 276; ++i) est[i].T_world_cam.translation().x() += 0.1;  // in [4 s, 5 s)
+  const auto r = ds3d::evaluate_ate(gt, est, {.window = 1.0});
+  ASSERT_EQ(r.windows.size(), 10U);
+  EXPECT_EQ(r.num_short_windows, 0U);
+  for (std::size_t k = 0; k < r.windows.size(); ++k) {
+    const auto& w = r.windows[k];
+    SCOPED_TRACE(k);
+    EXPECT_EQ(w.pairs, 64U);
+    EXPECT_EQ(w.start, 100.0 + static_cast<double>(k));
+    EXPECT_EQ(w.end, 100.0 + static_cast<double>(k) + 63.0 / 64);
+    EXPECT_TRUE(std::isfinite(w.rmse));
+    if (k == 4) {
+      EXPECT_GT(w.rmse, 0.03);  // 20 of 64 poses 0.1 m off: ~0.046 m after the local alignment
+    } else {
+      EXPECT_LT(w.rmse, 1e-9);
+    }
+  }
+  EXPECT_EQ(r.worst_window_rmse, r.windows[4].rmse);
+  EXPECT_GT(r.worst_window_rmse, 2 * r.rmse);  // the global figure smears the drift out
+}
+
+TEST(AteWindow, OneLongWindowEqualsTheGlobalAte) {
+  const auto gt = helix(300, 0.01);
+  auto est = gt;
+  Eigen::Isometry3d x = Eigen::Isometry3d::Identity();
+  x.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0, 1, 1).normalized()).toRotationMatrix();
+  x.translation() = Eigen::Vector3d(1, 2, -1);
+  for (std::size_t i = 0; i < est.size(); ++i) {
+    est[i].T_world_cam = x * est[i].T_world_cam;
+    est[i].T_world_cam.translation() *= 0.8;
+    est[i].T_world_cam.translation().y() += 0.02 * std::sin(0.37 * static_cast<double>(i));
+  }
+  for (const auto a : {ds3d::Alignment::kSE3, ds3d::Alignment::kSim3, ds3d::Alignment::kNone}) {
+    SCOPED_TRACE(static_cast<int>(a));
+    const auto r = ds3d::evaluate_ate(gt, est, {.alignment = a, .window = 1000.0});
+    ASSERT_EQ(r.windows.size(), 1U);
+    EXPECT_EQ(r.windows[0].pairs, r.compared_pose_pairs);
+    EXPECT_EQ(r.windows[0].start, r.matches.front().t_gt);
+    EXPECT_EQ(r.windows[0].end, r.matches.back().t_gt);
+    EXPECT_NEAR(r.windows[0].rmse, r.rmse, 1e-9 * r.rmse);
+    EXPECT_EQ(r.worst_window_rmse, r.windows[0].rmse);
+  }
+}
+
+TEST(AteWindow, ShortWindowsAreSkippedAndCounted) {
+  // windows of 1 s: [0,1) 4 pairs, [1,2) 1, [2,3) 2, [3,4) 3, [4,6) empty (not counted), [6,7) 3
+  const std::vector<double> stamps = {0,   0.25, 0.5, 0.75, 1.25, 2.0, 2.5,
+                                      3.0, 3.25, 3.5, 6.0,  6.5,  6.75};
+  ds3d::Trajectory gt;
+  for (const double t : stamps) {
+    ds3d::TimedPose p;
+    p.timestamp = t;
+    p.T_world_cam.translation() = Eigen::Vector3d(std::cos(t), std::sin(2 * t), 0.1 * t * t);
+    gt.push_back(p);
+  }
+  auto est = gt;
+  for (auto& p : est) p.T_world_cam.translation().z() += 0.01 * std::cos(5 * p.timestamp);
+  const auto r = ds3d::evaluate_ate(gt, est, {.window = 1.0});
+  ASSERT_EQ(r.windows.size(), 3U);
+  EXPECT_EQ(r.num_short_windows, 2U);
+  EXPECT_EQ(r.windows[0].pairs, 4U);
+  EXPECT_EQ(r.windows[0].start, 0.0);
+  EXPECT_EQ(r.windows[0].end, 0.75);
+  EXPECT_EQ(r.windows[1].pairs, 3U);
+  EXPECT_EQ(r.windows[1].start, 3.0);
+  EXPECT_EQ(r.windows[1].end, 3.5);
+  EXPECT_EQ(r.windows[2].start, 6.0);
+  double worst = 0;
+  for (const auto& w : r.windows) {
+    EXPECT_TRUE(std::isfinite(w.rmse));
+    worst = std::max(worst, w.rmse);
+  }
+  EXPECT_EQ(r.worst_window_rmse, worst);
+  // the same through the free function; window 0 is off
+  const auto direct = ds3d::ate_windows(r, 1.0, ds3d::Alignment::kSE3);
+  ASSERT_EQ(direct.windows.size(), 3U);
+  EXPECT_EQ(direct.windows[2].rmse, r.windows[2].rmse);
+  const auto off = ds3d::evaluate_ate(gt, est);
+  EXPECT_TRUE(off.windows.empty());
+  EXPECT_EQ(off.worst_window_rmse, 0.0);
+  EXPECT_EQ(off.num_short_windows, 0U);
+  EXPECT_TRUE(ds3d::ate_windows(r, 0.0, ds3d::Alignment::kSE3).windows.empty());
+  // every window short: no window, worst 0
+  const auto tiny = ds3d::evaluate_ate(gt, est, {.window = 0.1});
+  EXPECT_TRUE(tiny.windows.empty());
+  EXPECT_EQ(tiny.num_short_windows, stamps.size());
+  EXPECT_EQ(tiny.worst_window_rmse, 0.0);
+}
+
+TEST(AteWindow, RejectsBadWindow) {
+  const auto gt = helix(50, 0.01);
+  for (const double w : {-1.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    try {
+      (void)ds3d::evaluate_ate(gt, gt, {.window = w});
+      ADD_FAILURE() << "no throw for window " << w;
+    } catch (const ds3d::InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find("window"), std::string::npos) << e.what();
+    }
+  }
+  const auto r = ds3d::evaluate_ate(gt, gt);
+  EXPECT_THROW((void)ds3d::ate_windows(r, -0.5, ds3d::Alignment::kSE3), ds3d::InvalidArgument);
+}
+
 TEST(Associate, GreedyOneToOneNotNearestNeighbour) {
   // 2.0 is the nearest first-stamp of both 2.004 and 2.005: greedy gives it to 2.004 (0.004)
   // and 2.005 then takes 2.01 (0.005).

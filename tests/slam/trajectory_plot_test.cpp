@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
-// The ATE plot, and the ds3d-eval CLI against the TUM scripts' printed output of every fixture.
+// The ATE plot, and the ds3d-eval CLI against the TUM scripts' printed output of every fixture;
+// the local ATE windows in both.
 #include "ds3d/slam/trajectory_plot.hpp"
 
 #include <gtest/gtest.h>
@@ -10,11 +11,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "ds3d/detail/json.hpp"
 #include "support/files.hpp"
 
 namespace {
@@ -42,6 +45,36 @@ TEST(AtePlot, DrawsBothPanels) {
   fs::remove(out);
   EXPECT_THROW((void)ds3d::render_ate_plot(gt, r, {.width = 10}), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::render_ate_plot(gt, ds3d::AteResult{}), ds3d::InvalidArgument);
+}
+
+// 10 s at 64 Hz along a curve; the estimate equals it except 20 poses 0.1 m off in [4 s, 5 s).
+std::pair<ds3d::Trajectory, ds3d::Trajectory> drift_pair() {
+  ds3d::Trajectory gt;
+  for (int i = 0; i < 640; ++i) {
+    ds3d::TimedPose p;
+    p.timestamp = 100.0 + i / 64.0;
+    const double a = 0.01 * i;
+    p.T_world_cam.translation() = Eigen::Vector3d(std::cos(a), std::sin(a), 0.002 * i);
+    gt.push_back(p);
+  }
+  auto est = gt;
+  for (int i = 256; i < 276; ++i) est[i].T_world_cam.translation().x() += 0.1;
+  return {gt, est};
+}
+
+TEST(AtePlot, DrawsTheWindows) {
+  const auto pair = drift_pair();
+  const ds3d::Trajectory& gt = pair.first;
+  const ds3d::Trajectory& est = pair.second;
+  const auto count_magenta = [&](const ds3d::AteResult& r) {
+    const cv::Mat img = ds3d::render_ate_plot(gt, r, {.width = 1000, .height = 500});
+    cv::Mat mask;
+    cv::inRange(img(cv::Rect(500, 60, 500, 440)), cv::Scalar(190, 0, 190), cv::Scalar(210, 10, 210),
+                mask);
+    return cv::countNonZero(mask);
+  };
+  EXPECT_EQ(count_magenta(ds3d::evaluate_ate(gt, est)), 0);
+  EXPECT_GT(count_magenta(ds3d::evaluate_ate(gt, est, {.window = 1.0})), 300);
 }
 
 // Same lines, names and units; numbers equal up to the %f rounding, plus the fixtures' 1e-5 deg
@@ -107,6 +140,61 @@ TEST(Ds3dEvalCli, PrintsWhatTheTumScriptsPrint) {
   EXPECT_NE(run(exe.string() + " ate a b --align se2 2>&1").find("se2"), std::string::npos);
   EXPECT_NE(run(exe.string() + " ate /nonexistent/a.txt /nonexistent/b.txt 2>&1").find("a.txt"),
             std::string::npos);
+}
+
+TEST(Ds3dEvalCli, WindowTextJsonAndPlot) {
+  const fs::path exe = fs::path(DS3D_BINARY_DIR) / "bin" / "ds3d-eval";
+  if (!fs::exists(exe)) GTEST_SKIP() << "ds3d-eval not built";
+  const fs::path dir = fs::temp_directory_path() / ("ds3d_window_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const auto [gt, est] = drift_pair();
+  ds3d::write_tum_trajectory(dir / "gt.txt", gt);
+  ds3d::write_tum_trajectory(dir / "est.txt", est);
+  const auto want = ds3d::evaluate_ate(gt, est, {.window = 1.0});
+  const std::string files =
+      " '" + (dir / "gt.txt").string() + "' '" + (dir / "est.txt").string() + "'";
+
+  const std::string plain = run(exe.string() + " ate" + files);
+  const std::string text = run(exe.string() + " ate" + files + " --window 1");
+  ASSERT_EQ(text.rfind(plain, 0), 0U) << text;  // the usual lines first, unchanged
+  const std::string extra = text.substr(plain.size());
+  EXPECT_EQ(extra.rfind("windows 10 (1 s each)\n", 0), 0U) << extra;
+  double worst = 0, start = 0, end = 0;
+  ASSERT_EQ(std::sscanf(extra.c_str() + extra.find("worst_window_rmse"),
+                        "worst_window_rmse %lf m (start %lf end %lf)", &worst, &start, &end),
+            3)
+      << extra;
+  EXPECT_NEAR(worst, want.worst_window_rmse, 1e-6);
+  EXPECT_GT(worst, 1.5 * want.rmse);  // the global figure smears the drift out
+  EXPECT_EQ(start, 104.0);
+  EXPECT_EQ(end, 104.0 + 63.0 / 64);
+
+  const auto j =
+      ds3d::detail::parse_json(run(exe.string() + " ate" + files + " --window 1 --json"));
+  EXPECT_EQ(j.at("compared_pose_pairs").as_int(), 640);
+  ASSERT_EQ(j.at("windows").size(), want.windows.size());
+  for (std::size_t k = 0; k < want.windows.size(); ++k) {
+    const auto& w = j.at("windows").at(k);
+    EXPECT_NEAR(w.at("start").as_number(), want.windows[k].start, 1e-9);
+    EXPECT_NEAR(w.at("end").as_number(), want.windows[k].end, 1e-9);
+    EXPECT_EQ(w.at("pairs").as_int(), static_cast<std::int64_t>(want.windows[k].pairs));
+    EXPECT_NEAR(w.at("rmse").as_number(), want.windows[k].rmse, 1e-12);
+  }
+  EXPECT_NEAR(j.at("worst_window_rmse").as_number(), want.worst_window_rmse, 1e-12);
+  EXPECT_FALSE(
+      ds3d::detail::parse_json(run(exe.string() + " ate" + files + " --json")).contains("windows"));
+
+  const fs::path png = dir / "plot.png";
+  (void)run(exe.string() + " ate" + files + " --window 1 --plot '" + png.string() + "'");
+  const cv::Mat img = cv::imread(png.string());
+  ASSERT_EQ(img.cols, 1400);
+  cv::Mat mask;
+  cv::inRange(img, cv::Scalar(190, 0, 190), cv::Scalar(210, 10, 210), mask);
+  EXPECT_GT(cv::countNonZero(mask), 300);  // the window segments
+
+  EXPECT_NE(run(exe.string() + " ate" + files + " --window -1 2>&1").find("window"),
+            std::string::npos);
+  fs::remove_all(dir);
 }
 
 }  // namespace

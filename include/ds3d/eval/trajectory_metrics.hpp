@@ -9,6 +9,7 @@
 /// the associated positions (Horn 1987 / Umeyama 1991 via SVD, no scale by default), then the
 /// per-match position error. RPE: pairs (i, j) of estimate poses a fixed delta apart, each end
 /// matched to the nearest ground-truth stamp, error = inv(inv(E_j) E_i) inv(G_j) G_i.
+/// Local ATE (ate_windows()): the same per-window, each window of ground-truth time aligned alone.
 /// Statistics are numpy's: rmse, mean, median (mean of the middle two for even n), population
 /// std, min, max. Every function here is pure and safe to call concurrently.
 
@@ -148,11 +149,14 @@ struct AteOptions {
   double offset = 0.0;                    ///< added to estimate stamps [s]
   double scale = 1.0;                     ///< estimate positions are multiplied by it, > 0
   Alignment alignment = Alignment::kSE3;  ///< se3 (TUM), sim3 or none
+  double window = 0.0;  ///< local ATE window [s] of ground-truth time, finite, >= 0; 0 = off
   /// Throws ds3d::InvalidArgument naming the bad field and value.
   void validate() const {
     DS3D_CHECK(std::isfinite(max_difference) && max_difference >= 0,
                "ds3d::evaluate_ate: max_difference must be finite and >= 0 (got ", max_difference,
                ")");
+    DS3D_CHECK(std::isfinite(window) && window >= 0,
+               "ds3d::evaluate_ate: window must be finite and >= 0 (got ", window, ")");
     DS3D_CHECK(std::isfinite(offset), "ds3d::evaluate_ate: offset must be finite (got ", offset,
                ")");
     DS3D_CHECK(std::isfinite(scale) && scale > 0,
@@ -167,6 +171,14 @@ struct AteMatch {
   Eigen::Vector3d p_gt = Eigen::Vector3d::Zero();   ///< ground-truth position [m]
   Eigen::Vector3d p_est = Eigen::Vector3d::Zero();  ///< aligned estimate position [m]
   double error = 0;                                 ///< ||p_est - p_gt|| [m]
+};
+
+/// One window of the local ATE (see ate_windows()).
+struct AteWindow {
+  double start = 0;       ///< ground-truth stamp of the window's first pair [s]
+  double end = 0;         ///< ground-truth stamp of the window's last pair [s]
+  std::size_t pairs = 0;  ///< associated pairs in the window, >= 3
+  double rmse = 0;        ///< RMSE after aligning the window on its own [m]
 };
 
 /// Result of evaluate_ate(). Errors in metres.
@@ -187,6 +199,10 @@ struct AteResult {
   std::size_t num_gt_poses = 0;    ///< unique, finite ground-truth poses used
   std::size_t num_est_poses = 0;   ///< unique, finite estimate poses used
   std::size_t num_non_finite = 0;  ///< poses skipped (non-finite stamp or position)
+  /// Local ATE per AteOptions::window, in time order; empty when the window is 0.
+  std::vector<AteWindow> windows;
+  double worst_window_rmse = 0;       ///< largest AteWindow::rmse [m]; 0 without windows
+  std::size_t num_short_windows = 0;  ///< windows skipped for holding 1 or 2 pairs
   /// The error statistics alone (rmse, mean, median, std, min, max).
   [[nodiscard]] ErrorStats stats() const { return {rmse, mean, median, std, min, max}; }
 };
@@ -255,12 +271,70 @@ inline std::tuple<Eigen::Matrix3d, Eigen::Vector3d, double> align_positions(
   return {r, t, c};
 }
 
+/// ate_windows() result; the fields are copied into AteResult.
+struct AteWindowResult {
+  std::vector<AteWindow> windows;     ///< windows with >= 3 pairs, in time order
+  double worst_window_rmse = 0;       ///< largest rmse of `windows` [m]; 0 when empty
+  std::size_t num_short_windows = 0;  ///< windows with 1 or 2 pairs (skipped)
+};
+
+/// Local ATE: the matches of `r` (ground-truth time order) are cut into consecutive windows
+/// [t0 + k w, t0 + (k+1) w) of ground-truth time, t0 = the first match's stamp; each window with
+/// at least 3 pairs is aligned on its own (align_positions(), rigid or similarity per
+/// `alignment`; kNone: no alignment) and its RMSE computed. Re-aligning the globally aligned
+/// positions equals aligning the raw ones, since rigid and similarity transforms form a group.
+/// A local catastrophe (a few seconds of drift) shows here while the global RMSE smears it out.
+/// @param r         an evaluate_ate() result (only `matches` is read)
+/// @param window    window length w [s], finite, >= 0; 0 gives an empty result
+/// @param alignment alignment of each window, normally the one of the global ATE
+/// @return the windows with >= 3 pairs, the worst RMSE, the count of windows with 1 or 2 pairs
+///         (time spans without any pair are neither listed nor counted)
+/// @throws ds3d::InvalidArgument for a negative or non-finite window.
+/// @note O(n) for n matches (one 3x3 SVD per window); deterministic; finite for finite matches.
+[[nodiscard]] inline AteWindowResult ate_windows(const AteResult& r, double window,
+                                                 Alignment alignment) {
+  DS3D_CHECK(std::isfinite(window) && window >= 0,
+             "ds3d::ate_windows: window must be finite and >= 0 (got ", window, ")");
+  AteWindowResult out;
+  if (window == 0 || r.matches.empty()) return out;
+  const double t0 = r.matches.front().t_gt;
+  const auto slot = [&](const AteMatch& m) { return std::floor((m.t_gt - t0) / window); };
+  for (std::size_t a = 0; a < r.matches.size();) {
+    std::size_t b = a + 1;
+    while (b < r.matches.size() && slot(r.matches[b]) == slot(r.matches[a])) ++b;
+    const auto n = static_cast<Eigen::Index>(b - a);
+    if (n < 3) {
+      ++out.num_short_windows;
+      a = b;
+      continue;
+    }
+    Eigen::Matrix3Xd pg(3, n);
+    Eigen::Matrix3Xd pe(3, n);
+    for (Eigen::Index k = 0; k < n; ++k) {
+      pg.col(k) = r.matches[a + static_cast<std::size_t>(k)].p_gt;
+      pe.col(k) = r.matches[a + static_cast<std::size_t>(k)].p_est;
+    }
+    if (alignment != Alignment::kNone) {
+      const auto [rot, trans, c] = align_positions(pe, pg, alignment == Alignment::kSim3);
+      pe = (c * rot) * pe;
+      pe.colwise() += trans;
+    }
+    const double sum_sq = (pe - pg).colwise().squaredNorm().sum();
+    const double rmse = std::sqrt(sum_sq / static_cast<double>(n));
+    out.windows.push_back({r.matches[a].t_gt, r.matches[b - 1].t_gt, b - a, rmse});
+    out.worst_window_rmse = std::max(out.worst_window_rmse, rmse);
+    a = b;
+  }
+  return out;
+}
+
 /// Absolute trajectory error, as evaluate_ate.py (default options reproduce
 /// `evaluate_ate.py GT EST --verbose` to ~1e-15 relative).
 /// @param gt  ground truth (any order; equal stamps: the later element wins)
 /// @param est estimate (same rules); only positions are used
-/// @param options association window, stamp offset, scale, alignment
-/// @return statistics in metres, the alignment and every match
+/// @param options association window, stamp offset, scale, alignment, local ATE window
+/// @return statistics in metres, the alignment, every match and (window > 0) the local ATE
+///         of ate_windows() with the same alignment
 /// @throws ds3d::InvalidArgument for bad options, or when fewer than 3 pairs associate
 ///         (1 with Alignment::kNone): the alignment is then undefined.
 /// @note Non-finite poses are skipped and counted in num_non_finite. O((n+m) log(n+m)).
@@ -311,6 +385,12 @@ inline std::tuple<Eigen::Matrix3d, Eigen::Vector3d, double> align_positions(
   res.std = s.std;
   res.min = s.min;
   res.max = s.max;
+  if (options.window > 0) {
+    AteWindowResult w = ate_windows(res, options.window, options.alignment);
+    res.windows = std::move(w.windows);
+    res.worst_window_rmse = w.worst_window_rmse;
+    res.num_short_windows = w.num_short_windows;
+  }
   return res;
 }
 

@@ -4,7 +4,8 @@
 /// @file trajectory_plot.hpp
 /// @brief A PNG a person wants to look at after an ATE run (compiled into ds3d::slam, OpenCV
 /// drawing): left, the top view of the ground truth (grey) and the aligned estimate coloured by
-/// its error; right, the error over time with the RMSE and the statistics.
+/// its error; right, the error over time with the RMSE and the statistics, and the local ATE
+/// per window (AteResult::windows, when evaluated with AteOptions::window > 0).
 
 #include <filesystem>
 #include <string>

@@ -75,6 +75,16 @@ void bind_trajectory(py::module_& m) {
       py::arg("path"), py::arg("trajectory"),
       "Writes an (n, 8) array as a TUM file (temporary file + rename).");
 
+  py::class_<ds3d::AteWindow>(m, "AteWindow", "One window of the local ATE (evaluate_ate window=).")
+      .def_readonly("start", &ds3d::AteWindow::start, "ground-truth stamp of the first pair [s]")
+      .def_readonly("end", &ds3d::AteWindow::end, "ground-truth stamp of the last pair [s]")
+      .def_readonly("pairs", &ds3d::AteWindow::pairs)
+      .def_readonly("rmse", &ds3d::AteWindow::rmse, "[m], the window aligned on its own")
+      .def("__repr__", [](const ds3d::AteWindow& w) {
+        return "AteWindow(start=" + std::to_string(w.start) + ", end=" + std::to_string(w.end) +
+               ", pairs=" + std::to_string(w.pairs) + ", rmse=" + std::to_string(w.rmse) + ")";
+      });
+
   py::class_<ds3d::AteResult>(m, "AteResult",
                               "evaluate_ate() result (include/ds3d/trajectory_metrics.hpp).")
       .def_readonly("compared_pose_pairs", &ds3d::AteResult::compared_pose_pairs)
@@ -87,6 +97,11 @@ void bind_trajectory(py::module_& m) {
       .def_readonly("rotation", &ds3d::AteResult::rotation)
       .def_readonly("translation", &ds3d::AteResult::translation)
       .def_readonly("scale", &ds3d::AteResult::scale_factor)
+      .def_readonly("windows", &ds3d::AteResult::windows,
+                    "list of AteWindow (window > 0), in time order")
+      .def_readonly("worst_window_rmse", &ds3d::AteResult::worst_window_rmse, "[m]; 0 if none")
+      .def_readonly("num_short_windows", &ds3d::AteResult::num_short_windows,
+                    "windows skipped for holding 1 or 2 pairs")
       .def_property_readonly(
           "matches",
           [](const ds3d::AteResult& r) {
@@ -109,16 +124,19 @@ void bind_trajectory(py::module_& m) {
   m.def(
       "evaluate_ate",
       [](const Eigen::Ref<const Rows>& gt, const Eigen::Ref<const Rows>& est, double max_difference,
-         double offset, double scale, const std::string& align) {
-        const ds3d::AteOptions o{max_difference, offset, scale, ds3d::parse_alignment(align)};
+         double offset, double scale, const std::string& align, double window) {
+        const ds3d::AteOptions o{max_difference, offset, scale, ds3d::parse_alignment(align),
+                                 window};
         const auto g = from_rows(gt, "ds3d.evaluate_ate");
         const auto e = from_rows(est, "ds3d.evaluate_ate");
         py::gil_scoped_release release;
         return ds3d::evaluate_ate(g, e, o);
       },
       py::arg("gt"), py::arg("est"), py::arg("max_difference") = 0.02, py::arg("offset") = 0.0,
-      py::arg("scale") = 1.0, py::arg("align") = "se3",
-      "ATE exactly as the TUM evaluate_ate.py; align: 'se3' (default), 'sim3' or 'none'.");
+      py::arg("scale") = 1.0, py::arg("align") = "se3", py::arg("window") = 0.0,
+      "ATE exactly as the TUM evaluate_ate.py; align: 'se3' (default), 'sim3' or 'none'.\n"
+      "window > 0 [s]: also the local ATE, pairs cut into windows of ground-truth time, each\n"
+      "aligned on its own (result.windows, result.worst_window_rmse).");
 
   py::class_<ds3d::RpeResult>(m, "RpeResult",
                               "evaluate_rpe() result (include/ds3d/trajectory_metrics.hpp).")
