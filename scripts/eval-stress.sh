@@ -77,7 +77,7 @@ fi
 for b in "$slam" "$evalb" "$synth"; do
   [[ -x "$b" ]] || { echo "eval-stress: $b not built (cmake --build build --target ds3d-slam ds3d-eval ds3d-synth)" >&2; exit 2; }
 done
-frames=90
+frames=120
 seeds="1 2"
 if [[ $quick == 1 ]]; then frames=60; seeds="1"; fi
 scenarios="crowd_cross crowd_board crowd_start crowd_handheld"
