@@ -17,6 +17,10 @@ SCENARIOS = (
     "walking_rpy",
     "sitting_static",
     "sitting_xyz",
+    "crowd_cross",
+    "crowd_board",
+    "crowd_start",
+    "crowd_handheld",
 )
 
 

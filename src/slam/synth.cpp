@@ -16,17 +16,24 @@ namespace ds3d::synth {
 
 Scenario parse_scenario(std::string_view name) {
   static const std::pair<std::string_view, Scenario> kNames[] = {
-      {"static_room", Scenario::kStaticRoom}, {"walking_static", Scenario::kWalkingStatic},
-      {"walking_xyz", Scenario::kWalkingXyz}, {"walking_halfsphere", Scenario::kWalkingHalfsphere},
-      {"walking_rpy", Scenario::kWalkingRpy}, {"sitting_static", Scenario::kSittingStatic},
-      {"sitting_xyz", Scenario::kSittingXyz}};
+      {"static_room", Scenario::kStaticRoom},
+      {"walking_static", Scenario::kWalkingStatic},
+      {"walking_xyz", Scenario::kWalkingXyz},
+      {"walking_halfsphere", Scenario::kWalkingHalfsphere},
+      {"walking_rpy", Scenario::kWalkingRpy},
+      {"sitting_static", Scenario::kSittingStatic},
+      {"sitting_xyz", Scenario::kSittingXyz},
+      {"crowd_cross", Scenario::kCrowdCross},
+      {"crowd_board", Scenario::kCrowdBoard},
+      {"crowd_start", Scenario::kCrowdStart},
+      {"crowd_handheld", Scenario::kCrowdHandheld}};
   for (const auto& [n, s] : kNames) {
     if (n == name) return s;
   }
   throw InvalidArgument(detail::concat(
       "ds3d::synth::parse_scenario: unknown scenario '", name,
       "' (valid: static_room, walking_static, walking_xyz, walking_halfsphere, walking_rpy, "
-      "sitting_static, sitting_xyz)"));
+      "sitting_static, sitting_xyz, crowd_cross, crowd_board, crowd_start, crowd_handheld)"));
 }
 
 std::string scenario_name(Scenario s) {
@@ -45,6 +52,14 @@ std::string scenario_name(Scenario s) {
       return "sitting_static";
     case Scenario::kSittingXyz:
       return "sitting_xyz";
+    case Scenario::kCrowdCross:
+      return "crowd_cross";
+    case Scenario::kCrowdBoard:
+      return "crowd_board";
+    case Scenario::kCrowdStart:
+      return "crowd_start";
+    case Scenario::kCrowdHandheld:
+      return "crowd_handheld";
   }
   return "unknown";
 }
@@ -53,8 +68,17 @@ void SynthOptions::validate() const {
   constexpr const char* kFn = "ds3d::synth::SynthOptions";
   DS3D_CHECK(num_frames >= 1 && num_frames <= 100000, kFn,
              ": num_frames must be in [1, 100000] (got ", num_frames, ")");
-  DS3D_CHECK(num_humans >= -1 && num_humans <= 4, kFn, ": num_humans must be in [0, 4] or -1 (got ",
-             num_humans, ")");
+  if (is_crowd(scenario)) {
+    DS3D_CHECK(num_humans == -1 || (num_humans >= 3 && num_humans <= 6), kFn,
+               ": num_humans must be in [3, 6] or -1 for crowd scenarios (got ", num_humans, ")");
+  } else {
+    DS3D_CHECK(num_humans >= -1 && num_humans <= 4, kFn,
+               ": num_humans must be in [0, 4] or -1 (got ", num_humans, ")");
+  }
+  DS3D_CHECK(std::isfinite(detection_miss) && detection_miss >= 0 && detection_miss <= 0.8, kFn,
+             ": detection_miss must be in [0, 0.8] (got ", detection_miss, ")");
+  DS3D_CHECK(std::isfinite(detection_false) && detection_false >= 0 && detection_false <= 1, kFn,
+             ": detection_false must be in [0, 1] (got ", detection_false, ")");
   DS3D_CHECK(std::isfinite(fps) && fps > 0 && fps <= 1000, kFn, ": fps must be in (0, 1000] (got ",
              fps, ")");
   DS3D_CHECK(std::isfinite(start_time) && start_time >= 0, kFn,

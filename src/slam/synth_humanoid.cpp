@@ -13,6 +13,7 @@
 namespace ds3d::synth {
 
 Pose2 SyntheticScene::Impl::human_pose(const Human& h, double t) const {
+  if (!h.route.empty()) return route_pose(h, t);
   if (h.sitting) return {h.a, h.yaw_sit, 0.0};
   const Eigen::Vector2d d = h.b - h.a;
   const double len = d.norm();
@@ -121,6 +122,7 @@ void SyntheticScene::Impl::human_meshes(std::size_t k, double t, std::vector<Mes
     add_part(static_cast<std::uint8_t>(8 + side_u), h.mat_pants,
              [&](Mesh& m) { add_capsule(m, W(kn), W(an), 0.055F * s * g, density); });
   }
+  if (h.carried != 0) carried_mesh(k, p, out);
 }
 
 HumanBox SyntheticScene::Impl::box_of(std::size_t k, double t,
@@ -145,6 +147,7 @@ HumanBox SyntheticScene::Impl::box_of(std::size_t k, double t,
   b.size = hi - lo;
   b.yaw = p.yaw;
   b.sitting = humans[k].sitting;
+  b.carried = humans[k].carried;
   return b;
 }
 

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -30,6 +31,12 @@ inline std::uint64_t mix(std::uint64_t x) {
   x = (x ^ (x >> 27U)) * 0x94D049BB133111EBULL;
   return x ^ (x >> 31U);
 }
+
+// High-contrast random texture: rectangles, discs and lines over a base colour, plus grain.
+cv::Mat make_texture(std::mt19937_64& rng, const cv::Scalar& base, int shapes, int min_size,
+                     int max_size);
+// Two-colour cloth: stripes or checks, plus grain.
+cv::Mat make_cloth(std::mt19937_64& rng);
 
 struct Mesh {
   std::vector<Eigen::Vector3f> pos;  // world
@@ -130,6 +137,18 @@ struct Human {
   double phase0 = 0;
   double yaw_sit = 0;
   int mat_shirt = 0, mat_pants = 0, mat_skin = 0;
+  // Crowd scenarios: a closed route; the human starts at route[0] at t = 0, stands there for
+  // dwell seconds (turning towards the next leg), walks to the next waypoint at `speed`, ...
+  struct Waypoint {
+    Eigen::Vector2d xy;
+    double dwell = 0;  // [s]
+    // Heading [rad] kept for the first 70 % of the dwell (NaN: turn all along from the heading
+    // it came in with).
+    double face = std::numeric_limits<double>::quiet_NaN();
+  };
+  std::vector<Waypoint> route;
+  int carried = 0;  // 0 nothing, 1 board, 2 box, 3 bag
+  int mat_carried = 0;
 };
 
 struct Pose2 {
@@ -158,6 +177,18 @@ struct SyntheticScene::Impl {
   [[nodiscard]] double distance_to_humans(const Eigen::Vector2d& p) const;
   // opt.extra_furniture chairs, tables and floor lamps, from a random stream of their own.
   void add_clutter(double room_x, double room_y);
+
+  // ---- crowd scenarios (synth_crowd.cpp) -----------------------------------------------------
+  // Camera shake knots (random walk, 10 Hz): rotation vector and translation in the camera frame.
+  std::vector<Eigen::Matrix<double, 6, 1>> shake;
+  std::vector<double> path;  // smooth path: sign and period factor per axis
+  [[nodiscard]] bool crowd() const { return is_crowd(opt.scenario); }
+  void build_crowd();  // people, routes, carried objects and shake, from their own stream
+  [[nodiscard]] Eigen::Isometry3d crowd_motion(double t) const;  // relative to the base pose
+  [[nodiscard]] Pose2 route_pose(const Human& h, double t) const;
+  void carried_mesh(std::size_t k, const Pose2& p, std::vector<Mesh>& out) const;
+  // Directional box blur of f.rgb along the mean image motion of the camera over one frame.
+  void motion_blur(SynthFrame& f) const;
 
   // ---- humanoids: gait, body meshes, boxes (synth_humanoid.cpp) ---------------------------
   Pose2 human_pose(const Human& h, double t) const;

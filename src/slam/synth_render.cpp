@@ -213,6 +213,7 @@ SynthFrame SyntheticScene::Impl::render(std::size_t i) const {
       if (units >= 1 && units <= 65535) d[x] = static_cast<std::uint16_t>(units);
     }
   }
+  if (crowd()) motion_blur(f);
   return f;
 }
 

@@ -33,7 +33,8 @@ void add_grain(cv::Mat& tex, std::uint64_t seed, int amplitude) {
   }
 }
 
-// High-contrast random texture: rectangles, discs and lines over a base colour, plus grain.
+}  // namespace
+
 cv::Mat make_texture(std::mt19937_64& rng, const cv::Scalar& base, int shapes, int min_size,
                      int max_size) {
   cv::Mat tex(kTex, kTex, CV_8UC3, base);
@@ -90,8 +91,6 @@ cv::Mat make_cloth(std::mt19937_64& rng) {
   return tex;
 }
 
-}  // namespace
-
 Eigen::Isometry3d SyntheticScene::Impl::camera_pose(double t_abs) const {
   const double t = t_abs - opt.start_time;
   // Base: 0.5 m from the x = 0 wall, 1.4 m high, looking along +x (camera z) with image up = +z.
@@ -134,6 +133,12 @@ Eigen::Isometry3d SyntheticScene::Impl::camera_pose(double t_abs) const {
       motion.translation() = wobble;
       break;
     }
+    case Scenario::kCrowdCross:
+    case Scenario::kCrowdBoard:
+    case Scenario::kCrowdStart:
+    case Scenario::kCrowdHandheld:
+      motion = crowd_motion(t);
+      break;
     case Scenario::kWalkingHalfsphere: {
       // Camera on a sphere of radius 1 m around a point 1 m ahead, looking at it.
       const double az = 0.6 * std::sin(w * t / 12.0);
@@ -206,6 +211,11 @@ void SyntheticScene::Impl::build(std::mt19937_64& rng) {
     static_meshes.push_back(std::move(m));
   }
 
+  if (crowd()) {  // people, routes and shake from a stream of their own
+    build_crowd();
+    if (opt.extra_furniture > 0) add_clutter(room_x, room_y);
+    return;
+  }
   // Humans.
   int n = opt.num_humans;
   if (n < 0) n = opt.scenario == Scenario::kStaticRoom ? 0 : 2;
@@ -259,6 +269,13 @@ void SyntheticScene::Impl::build(std::mt19937_64& rng) {
 double SyntheticScene::Impl::distance_to_humans(const Eigen::Vector2d& p) const {
   double best = std::numeric_limits<double>::infinity();
   for (const Human& h : humans) {
+    for (std::size_t i = 0; i < h.route.size(); ++i) {
+      const Eigen::Vector2d a = h.route[i].xy;
+      const Eigen::Vector2d ab = h.route[(i + 1) % h.route.size()].xy - a;
+      const double s = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
+      best = std::min(best, (p - (a + s * ab)).norm());
+    }
+    if (!h.route.empty()) continue;
     if (h.sitting) {
       best = std::min(best, (p - h.a).norm());
       continue;

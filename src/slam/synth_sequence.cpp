@@ -18,6 +18,7 @@
 #include "ds3d/detail/tum_text.hpp"
 #include "ds3d/errors.hpp"
 #include "ds3d/eval/trajectory.hpp"
+#include "synth_detections.hpp"
 
 namespace ds3d::synth {
 
@@ -104,6 +105,8 @@ SynthSummary generate_sequence(const std::filesystem::path& out_dir, const Synth
                           detail::json_number(options.camera.depth_scale) +
                           " units per metre, 0 = no depth)\n# timestamp filename\n";
   std::string boxes;
+  const bool noisy = options.detection_miss > 0 || options.detection_false > 0;
+  NoisyDetections noisy_det(options);
   double render_s = 0;
   for (std::size_t i = 0; i < scene.size(); ++i) {
     const double t0 = thread_cpu_seconds();
@@ -132,10 +135,12 @@ SynthSummary generate_sequence(const std::filesystem::path& out_dir, const Synth
       boxes += "{\"id\":" + std::to_string(b.id) + ",\"center\":" + json_vec(b.center) +
                ",\"size\":" + json_vec(b.size) + ",\"yaw\":" + detail::json_number(b.yaw) +
                ",\"sitting\":" + (b.sitting ? "true" : "false") +
+               (is_crowd(options.scenario) ? ",\"carried\":" + std::to_string(b.carried) : "") +
                ",\"visible_pixels\":" + std::to_string(b.visible_pixels) + "}";
       sum.dynamic_pixels += static_cast<std::size_t>(b.visible_pixels);
     }
     boxes += "]}\n";
+    if (noisy) noisy_det.add(f, name);
     ++sum.frames;
   }
   // Ground truth at 100 Hz over the sequence (the camera path is analytic), like TUM's mocap.
@@ -167,6 +172,8 @@ SynthSummary generate_sequence(const std::filesystem::path& out_dir, const Synth
   write_tum_trajectory(out_dir / "groundtruth.txt", gt);
   detail::write_file_atomically(out_dir / "camera.txt", cam, kFn);
   detail::write_file_atomically(out_dir / "boxes.jsonl", boxes, kFn);
+  if (noisy)
+    detail::write_file_atomically(out_dir / "detections_noisy.jsonl", noisy_det.text(), kFn);
   detail::write_file_atomically(out_dir / "depth.txt", depth_txt, kFn);
   detail::write_file_atomically(out_dir / "rgb.txt", rgb_txt, kFn);
   sum.render_seconds = render_s;

@@ -1,13 +1,14 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // ds3d-synth OUT_DIR --scenario NAME --frames N --seed S [--humans K] [--fps F] [--parts]
-//            [--no-noise] [--room X,Y,Z] [--furniture N]: writes a synthetic dynamic RGB-D sequence
-//            in TUM layout.
+//            [--no-noise] [--room X,Y,Z] [--furniture N] [--detection-errors MISS,FALSE]: writes a
+//            synthetic dynamic RGB-D sequence in TUM layout.
 #include <cstdlib>
 #include <exception>
 #include <iostream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "ds3d/slam/synth.hpp"
 
@@ -17,9 +18,32 @@ int usage(const char* msg) {
   std::cerr << "ds3d-synth: " << msg << "\n"
             << "usage: ds3d-synth OUT_DIR [--scenario NAME] [--frames N] [--seed S] [--humans K]\n"
             << "                  [--fps F] [--parts] [--no-noise] [--room X,Y,Z] [--furniture N]\n"
+            << "                  [--detection-errors MISS,FALSE]\n"
             << "scenarios: static_room walking_static walking_xyz walking_halfsphere walking_rpy\n"
-            << "           sitting_static sitting_xyz\n";
+            << "           sitting_static sitting_xyz crowd_cross crowd_board crowd_start\n"
+            << "           crowd_handheld\n"
+            << "--detection-errors: also write detections_noisy.jsonl, person boxes missed with\n"
+            << "           probability MISS per frame (in runs) and a false box with probability\n"
+            << "           FALSE per frame\n";
   return 2;
+}
+
+// "A,B,..." as n numbers.
+std::vector<double> parse_list(const std::string& flag, const std::string& v, int n) {
+  std::vector<double> out;
+  std::size_t pos = 0;
+  for (int k = 0; k < n; ++k) {
+    const std::size_t end = k + 1 < n ? v.find(',', pos) : v.size();
+    if (end == std::string::npos)
+      throw std::invalid_argument(flag + ": expected " + std::to_string(n) +
+                                  " comma-separated numbers, got '" + v + "'");
+    std::size_t used = 0;
+    const std::string part = v.substr(pos, end - pos);
+    out.push_back(std::stod(part, &used));
+    if (used != part.size()) throw std::invalid_argument(flag + ": not a number: '" + part + "'");
+    pos = end + 1;
+  }
+  return out;
 }
 
 long parse_int(const std::string& flag, const std::string& v) {
@@ -54,21 +78,12 @@ int main(int argc, char** argv) {
       } else if (a == "--parts") {
         opt.write_parts = true;
       } else if (a == "--room") {
-        const std::string v = value();
-        double xyz[3];
-        std::size_t pos = 0;
-        for (int k = 0; k < 3; ++k) {
-          const std::size_t end = k < 2 ? v.find(',', pos) : v.size();
-          if (end == std::string::npos)
-            throw std::invalid_argument("--room: expected X,Y,Z, got '" + v + "'");
-          std::size_t used = 0;
-          const std::string part = v.substr(pos, end - pos);
-          xyz[k] = std::stod(part, &used);
-          if (used != part.size())
-            throw std::invalid_argument("--room: not a number: '" + part + "'");
-          pos = end + 1;
-        }
+        const std::vector<double> xyz = parse_list(a, value(), 3);
         opt.room_size = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);
+      } else if (a == "--detection-errors") {
+        const std::vector<double> mf = parse_list(a, value(), 2);
+        opt.detection_miss = mf[0];
+        opt.detection_false = mf[1];
       } else if (a == "--furniture") {
         opt.extra_furniture = static_cast<int>(parse_int(a, value()));
       } else if (a == "--no-noise") {

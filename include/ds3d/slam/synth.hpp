@@ -40,10 +40,23 @@ enum class Scenario : std::uint8_t {
   kWalkingRpy,         ///< "walking_rpy": walkers, roll/pitch/yaw camera rotation
   kSittingStatic,      ///< "sitting_static": seated humans moving a little, static camera
   kSittingXyz,         ///< "sitting_xyz": seated humans, xyz camera motion
+  /// Crowd stress scenarios (see synth_crowd.cpp): 3-6 people on routes with stops and turns,
+  /// in view at frame 0, a handheld camera (smooth path + random-walk shake) and motion blur of
+  /// the colour image along the image motion where it is large.
+  kCrowdCross,     ///< "crowd_cross": 4 people, two crossing 0.7-1.4 m ahead, cut by the edges
+  kCrowdBoard,     ///< "crowd_board": 3 people carrying a 1 x 0.7 m board, a box and a bag
+  kCrowdStart,     ///< "crowd_start": 5 people, two standing close cover 30-70 % of frame 0
+  kCrowdHandheld,  ///< "crowd_handheld": 4 people, fast handheld pans (strong motion blur)
 };
 
 /// Parses a scenario name (see Scenario). @throws ds3d::InvalidArgument listing the valid names.
 [[nodiscard]] Scenario parse_scenario(std::string_view name);
+
+/// True for the crowd_* stress scenarios.
+[[nodiscard]] inline bool is_crowd(Scenario s) {
+  return s == Scenario::kCrowdCross || s == Scenario::kCrowdBoard || s == Scenario::kCrowdStart ||
+         s == Scenario::kCrowdHandheld;
+}
 
 /// The name of a scenario ("walking_xyz", ...).
 [[nodiscard]] std::string scenario_name(Scenario s);
@@ -53,9 +66,10 @@ struct SynthOptions {
   Scenario scenario = Scenario::kWalkingXyz;  ///< scene and camera motion
   int num_frames = 30;                        ///< frames, 1 ... 100000
   std::uint64_t seed = 1;                     ///< everything random derives from it
-  int num_humans = -1;                        ///< 0 ... 4; -1: 2 (0 for static_room)
-  double fps = 30.0;                          ///< frame rate [Hz], (0, 1000]
-  double start_time = 1700000000.0;           ///< stamp of frame 0 [s]
+  /// 0 ... 4 (crowd_*: 3 ... 6); -1: 2 (0 for static_room; crowd_*: as listed in Scenario)
+  int num_humans = -1;
+  double fps = 30.0;                 ///< frame rate [Hz], (0, 1000]
+  double start_time = 1700000000.0;  ///< stamp of frame 0 [s]
   /// Intrinsics (no distortion allowed); default TUM ROS 525/525/319.5/239.5, 640 x 480.
   PinholeCamera camera = PinholeCamera{};
   bool depth_noise = true;   ///< false: exact depth (still x depth_scale, rounded), no holes
@@ -69,6 +83,13 @@ struct SynthOptions {
   /// clutter with legs and backs, the furniture a person detector must not mistake for people.
   /// Drawn from their own random stream, so the rest of the scene does not change with it.
   int extra_furniture = 0;
+  /// Detector errors of detections_noisy.jsonl (written by generate_sequence when either is > 0):
+  /// each visible person box is dropped with this probability per frame, in runs of a few frames
+  /// (mean 5), [0, 0.8] ...
+  double detection_miss = 0;
+  /// ... and a false person box is put on a static surface (furniture or wall) with this
+  /// probability per frame, [0, 1]. From a random stream of their own: the frames do not change.
+  double detection_false = 0;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 
@@ -79,7 +100,10 @@ struct HumanBox {
   Eigen::Vector3d size = Eigen::Vector3d::Zero();  ///< extent along its local x (facing), y, z [m]
   double yaw = 0;                                  ///< heading about world z [rad]
   bool sitting = false;                            ///< seated (moves a little) or walking
-  int visible_pixels = 0;                          ///< pixels of this human in the frame
+  /// What the human carries (crowd scenarios): 0 nothing, 1 board, 2 box, 3 bag. The carried
+  /// object counts as the human's (human_id, dynamic mask, this box); its part_id is 0.
+  int carried = 0;
+  int visible_pixels = 0;  ///< pixels of this human in the frame
 };
 
 /// One rendered frame.
@@ -94,6 +118,8 @@ struct SynthFrame {
   cv::Mat human_id;             ///< CV_8UC1: 0 static, k+1 for human k
   cv::Mat part_id;              ///< CV_8UC1: 0 static, else body part 1..10 (see part_names())
   std::vector<HumanBox> boxes;  ///< every human, visible or not
+  /// Length [px] of the motion blur applied to rgb (crowd scenarios only; 0: none).
+  double blur_px = 0;
 };
 
 /// Body-part names for part_id values 1..10 (index 0 is "static").
@@ -144,10 +170,12 @@ struct SynthSummary {
 /// Writes a TUM-layout folder: rgb/TIME.png, depth/TIME.png (16-bit, x depth_scale), rgb.txt,
 /// depth.txt, groundtruth.txt (100 Hz, analytic), camera.txt, mask/TIME.png (dynamic pixels,
 /// 0/255), boxes.jsonl (one JSON object per frame: timestamp, frame, boxes[{id, center, size,
-/// yaw, sitting, visible_pixels}]), and with options.write_parts: parts/TIME.png (CV_8UC3: B =
-/// human id (k+1), G = part id, R = 0) and parts_loc/TIME.png (CV_16UC3, x y z location in the
-/// box x 65535); TIME is the frame's timestamp. Every file is written to a temporary name and
-/// renamed; the lists are written last.
+/// yaw, sitting, visible_pixels}]; crowd scenarios add "carried"), with detection_miss or
+/// detection_false > 0 detections_noisy.jsonl (ds3d::DetectionsFile format: 3-D "corners" in the
+/// camera frame, class "person", score 1, one line per frame), and with options.write_parts:
+/// parts/TIME.png (CV_8UC3: B = human id (k+1), G = part id, R = 0) and parts_loc/TIME.png
+/// (CV_16UC3, x y z location in the box x 65535); TIME is the frame's timestamp. Every file is
+/// written to a temporary name and renamed; the lists are written last.
 /// @param out_dir created if missing
 /// @param options scenario, frames, seed, humans, fps, noise and parts (validated first)
 /// @throws ds3d::InvalidArgument for bad options; ds3d::IoError when writing fails.
