@@ -144,7 +144,7 @@ void SyntheticScene::Impl::build_crowd() {
       }
       case Role::kWander: {  // random stops 2-3.5 m ahead, starting in a free part of the view
         const double dmax = std::min(3.5, room_x - 1.2 - kCamX);
-        Eigen::Vector2d p0;
+        Eigen::Vector2d p0 = Eigen::Vector2d::Zero();  // set by the first candidate
         double best = -std::numeric_limits<double>::infinity();
         for (int tries = 0; tries < 60; ++tries) {  // the start with the widest angular gap
           const double d = uni(2.0, dmax);

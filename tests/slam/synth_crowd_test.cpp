@@ -105,7 +105,9 @@ TEST(SynthCrowd, PeopleCloseCarryingAndInView) {
     }
     EXPECT_TRUE(close);
     for (const auto& b : f0.boxes) {
-      if (b.carried != 0) EXPECT_GT(carried_seen[static_cast<std::size_t>(b.id)], 0);
+      if (b.carried != 0) {
+        EXPECT_GT(carried_seen[static_cast<std::size_t>(b.id)], 0);
+      }
     }
     if (kCrowd[s] == Scenario::kCrowdBoard) {
       for (int c = 1; c <= 3; ++c) {
