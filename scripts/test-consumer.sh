@@ -32,7 +32,9 @@ done
 
 echo "consumer: header-only install (DS3D_BUILD_SLAM=OFF)"
 cmake -S . -B "${tmp}/core-build" -G Ninja -DDS3D_BUILD_SLAM=OFF -DDS3D_BUILD_TESTS=OFF \
-  -DDS3D_BUILD_BENCH=OFF -DDS3D_BUILD_PYTHON=OFF -DDS3D_BUILD_TOOLS=OFF >/dev/null
+  -DDS3D_BUILD_BENCH=OFF -DDS3D_BUILD_PYTHON=OFF -DDS3D_BUILD_TOOLS=OFF \
+  -DDS3D_BUILD_EXAMPLES=OFF >/dev/null
+cmake --build "${tmp}/core-build" --target ds3d_htx >/dev/null  # the only compiled part
 cmake --install "${tmp}/core-build" --prefix "${tmp}/core-prefix" >/dev/null
 cmake -S examples/consumer -B "${tmp}/build-core" -G Ninja -DCMAKE_PREFIX_PATH="${tmp}/core-prefix" \
   -DCONSUMER_CORE_ONLY=ON >/dev/null
