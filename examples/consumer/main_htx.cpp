@@ -47,10 +47,11 @@ int main(int argc, char** argv) {
     const bool ok = b.centre.allFinite() && b.size.allFinite() && std::isfinite(b.score);
     if (!ok) return 1;
     std::printf("  %s score %.2f at (%.2f, %.2f, %.2f) m, size %.2f x %.2f x %.2f m\n",
-                det.config().class_names.at(static_cast<std::size_t>(b.label)).c_str(), static_cast<double>(b.score),
-                static_cast<double>(b.centre.x()), static_cast<double>(b.centre.y()),
-                static_cast<double>(b.centre.z()), static_cast<double>(b.size.x()),
-                static_cast<double>(b.size.y()), static_cast<double>(b.size.z()));
+                det.config().class_names.at(static_cast<std::size_t>(b.label)).c_str(),
+                static_cast<double>(b.score), static_cast<double>(b.centre.x()),
+                static_cast<double>(b.centre.y()), static_cast<double>(b.centre.z()),
+                static_cast<double>(b.size.x()), static_cast<double>(b.size.y()),
+                static_cast<double>(b.size.z()));
     people += (b.centre.head<2>() - Eigen::Vector2f(0.4F, 2.0F)).norm() < 0.5F ? 1 : 0;
   }
   std::printf("person found: %s\n", people > 0 ? "yes" : "no");

@@ -25,8 +25,8 @@ const ConfigKey& find_key(std::string_view name) {
   for (const auto& k : config_keys()) {
     if (k.name == name) return k;
   }
-  throw InvalidArgument(detail::concat(kSet, ": unknown key '", name,
-                                       "' (ds3d-slam --dump-config lists every key)"));
+  throw InvalidArgument(
+      detail::concat(kSet, ": unknown key '", name, "' (ds3d-slam --dump-config lists every key)"));
 }
 
 // Applies one YAML node under `prefix` (empty at the top).
@@ -41,8 +41,8 @@ void apply_node(SlamConfig& c, const YAML::Node& node, const std::string& prefix
       try {
         c.set(name, v.IsNull() ? "" : v.Scalar());
       } catch (const InvalidArgument& e) {
-        throw InvalidArgument(detail::concat(e.what(), " in ", file.string(), " line ",
-                                             v.Mark().line + 1));
+        throw InvalidArgument(
+            detail::concat(e.what(), " in ", file.string(), " line ", v.Mark().line + 1));
       }
     } else {
       throw InvalidArgument(detail::concat("ds3d::slam::apply_config_file: ", name, " in ",
@@ -95,7 +95,9 @@ const std::vector<ConfigKey>& config_keys() {
   return keys;
 }
 
-void SlamConfig::set(std::string_view key, std::string_view value) { find_key(key).set(*this, value); }
+void SlamConfig::set(std::string_view key, std::string_view value) {
+  find_key(key).set(*this, value);
+}
 
 std::string SlamConfig::get(std::string_view key) const { return find_key(key).get(*this); }
 

@@ -18,9 +18,10 @@ namespace ds3d::slam::detail_config {
 
 inline constexpr const char* kSet = "ds3d::slam::SlamConfig::set";
 
-[[noreturn]] inline void bad_value(std::string_view key, std::string_view value, const char* expected) {
-  throw InvalidArgument(ds3d::detail::concat(kSet, ": ", key, " expects ", expected, " (got '", value,
-                                       "')"));
+[[noreturn]] inline void bad_value(std::string_view key, std::string_view value,
+                                   const char* expected) {
+  throw InvalidArgument(
+      ds3d::detail::concat(kSet, ": ", key, " expects ", expected, " (got '", value, "')"));
 }
 
 template <class T>

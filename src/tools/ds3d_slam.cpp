@@ -31,13 +31,13 @@
 // detail::write_file_atomically (trajectory.hpp); silence it for these headers only.
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wrestrict"
-#include "ds3d/slam/dataset.hpp"
 #include "ds3d/detail/json.hpp"
-#include "ds3d/slam/config.hpp"
-#include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/errors.hpp"
-#include "ds3d/slam/slam_frontend.hpp"
 #include "ds3d/eval/trajectory.hpp"
+#include "ds3d/slam/config.hpp"
+#include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/dynamic/dynamic_sources.hpp"
+#include "ds3d/slam/slam_frontend.hpp"
 #pragma GCC diagnostic pop
 
 namespace {
@@ -151,7 +151,8 @@ Args parse(int argc, char** argv) {
     } else if (s == "--set") {
       const std::string kv = value();
       const auto eq = kv.find('=');
-      if (eq == std::string::npos || eq == 0) usage_error("--set expects KEY=VALUE (got '" + kv + "')");
+      if (eq == std::string::npos || eq == 0)
+        usage_error("--set expects KEY=VALUE (got '" + kv + "')");
       sets.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
     } else if (s == "--dump-config") {
       a.dump_config = true;
@@ -246,8 +247,7 @@ void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
   char name[32];
   std::snprintf(name, sizeof(name), "frame_%06zu.png", r.index);
   const auto path = dir / name;
-  DS3D_CHECK_AS(ds3d::IoError, cv::imwrite(path.string(), img), "cannot write ",
-                path.string());
+  DS3D_CHECK_AS(ds3d::IoError, cv::imwrite(path.string(), img), "cannot write ", path.string());
 }
 
 int run(const Args& a) {

@@ -108,7 +108,8 @@ TEST(SlamConfig, FilesNestedDottedAndJson) {
   EXPECT_EQ(c.frontend.local_ba.iterations_first, 4);
   SlamConfig j;
   ds3d::slam::apply_config_file(
-      j, write_file("ds3d_config_test.json", R"({"htx": {"detect_every": 3}, "filter.min_samples": 5})"));
+      j, write_file("ds3d_config_test.json",
+                    R"({"htx": {"detect_every": 3}, "filter.min_samples": 5})"));
   EXPECT_EQ(j.htx.detect_every, 3);
   EXPECT_EQ(j.filter.min_samples, 5);
   // errors name the file
@@ -174,13 +175,15 @@ TEST(Ds3dSlamCli, ConfigSetAndDump) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_EQ(r.output, ds3d::slam::dump_config());
   const auto yaml = write_file("ds3d_cli_config.yaml", "htx:\n  min_score: 0.45\n");
-  r = run_cli("--config '" + yaml.string() + "' --set htx.detect_every=3 --dynamic htx --dump-config");
+  r = run_cli("--config '" + yaml.string() +
+              "' --set htx.detect_every=3 --dynamic htx --dump-config");
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("  min_score: 0.45  #"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("  detect_every: 3  #"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("  source: \"htx\"  #"), std::string::npos) << r.output;
   // --set after --config wins; the later of two settings wins
-  r = run_cli("--config '" + yaml.string() + "' --set htx.min_score=0.2 --set htx.min_score=0.25 "
+  r = run_cli("--config '" + yaml.string() +
+              "' --set htx.min_score=0.2 --set htx.min_score=0.25 "
               "--dump-config");
   EXPECT_NE(r.output.find("  min_score: 0.25  #"), std::string::npos) << r.output;
   EXPECT_EQ(run_cli("--set nope=1 --dump-config").code, 2);

@@ -35,7 +35,8 @@ namespace ds3d::slam {
 enum class Gate : std::uint8_t {
   kNone,      ///< boxes as the source reports them
   kMotion,    ///< only in frames where the geometric source sees motion (MotionGatedSource)
-  kEvidence,  ///< boxes whose geometric evidence is significant, tracked (MotionGateParams::evidence)
+  kEvidence,  ///< boxes whose geometric evidence is significant, tracked
+              ///< (MotionGateParams::evidence)
 };
 
 /// "none", "motion" or "evidence".
@@ -46,11 +47,12 @@ enum class Gate : std::uint8_t {
 /// Everything a SLAM run is configured by, except the camera (from the dataset or `--camera`).
 /// Fields are set directly or by key (set(), config_keys()); validate() checks them all.
 struct SlamConfig {
-  std::string dynamic = "none";  ///< source: none, geometric, htx, file:PATH or A+B (key dynamic.source)
-  Gate gate = Gate::kNone;       ///< gate by the geometric source (key dynamic.gate)
-  std::filesystem::path weights{};  ///< HTx weights; empty = find_default_weights()
-  FrontendConfig frontend{};        ///< tracking, mapping, keyframes (its camera is not a key)
-  HtxSourceParams htx{};            ///< the htx source
+  std::string dynamic =
+      "none";               ///< source: none, geometric, htx, file:PATH or A+B (key dynamic.source)
+  Gate gate = Gate::kNone;  ///< gate by the geometric source (key dynamic.gate)
+  std::filesystem::path weights{};    ///< HTx weights; empty = find_default_weights()
+  FrontendConfig frontend{};          ///< tracking, mapping, keyframes (its camera is not a key)
+  HtxSourceParams htx{};              ///< the htx source
   GeometricMotionParams geometric{};  ///< the geometric source (also the gate's motion source)
   MotionGateParams gate_params{};     ///< the gate (keys gate.*; evidence follows `gate`)
   DynamicFilterParams filter{};       ///< the box-gated HDBSCAN keypoint filter
@@ -73,11 +75,11 @@ struct SlamConfig {
 
 /// One configuration key: its name, type, help line and accessors.
 struct ConfigKey {
-  std::string name;  ///< `section.field`, e.g. "htx.min_score"
-  std::string type;  ///< bool, int, number or string
-  std::string help;  ///< one line: meaning, [unit], range
-  std::function<std::string(const SlamConfig&)> get;               ///< text form
-  std::function<void(SlamConfig&, std::string_view)> set;          ///< parse and store
+  std::string name;                                   ///< `section.field`, e.g. "htx.min_score"
+  std::string type;                                   ///< bool, int, number or string
+  std::string help;                                   ///< one line: meaning, [unit], range
+  std::function<std::string(const SlamConfig&)> get;  ///< text form
+  std::function<void(SlamConfig&, std::string_view)> set;  ///< parse and store
 };
 
 /// Every key, in a fixed order (sections, then fields as declared).

@@ -25,10 +25,12 @@ void bind_config(py::module_& m) {
       .def("validate", &SlamConfig::validate, "ValueError naming the bad field.")
       .def("apply_file", &ds3d::slam::apply_config_file, py::arg("path"),
            "Applies a YAML or JSON file (RuntimeError: unreadable; ValueError: bad key/value).")
-      .def("dump", [](const SlamConfig& c) { return ds3d::slam::dump_config(c); },
-           "Every key with its value and help line, as YAML (ds3d-slam --dump-config).")
-      .def("frontend_config", [](const SlamConfig& c) { return c.frontend; },
-           "A copy of the front-end section as a ds3d.FrontendConfig (for ds3d.Slam).")
+      .def(
+          "dump", [](const SlamConfig& c) { return ds3d::slam::dump_config(c); },
+          "Every key with its value and help line, as YAML (ds3d-slam --dump-config).")
+      .def(
+          "frontend_config", [](const SlamConfig& c) { return c.frontend; },
+          "A copy of the front-end section as a ds3d.FrontendConfig (for ds3d.Slam).")
       .def("copy", [](const SlamConfig& c) { return SlamConfig(c); });
   m.def(
       "_config_keys",

@@ -13,12 +13,12 @@
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wrestrict"
+#include "ds3d/eval/trajectory.hpp"
+#include "ds3d/eval/trajectory_metrics.hpp"
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/slam/dynamic/geometric_motion.hpp"
 #include "ds3d/slam/slam_frontend.hpp"
 #include "ds3d/slam/synth.hpp"
-#include "ds3d/eval/trajectory.hpp"
-#include "ds3d/eval/trajectory_metrics.hpp"
 #pragma GCC diagnostic pop
 #include "ds3d_demo/demo.hpp"
 
@@ -131,40 +131,41 @@ void write_svg(const std::filesystem::path& path, const ds3d::Trajectory& gt,
 
 }  // namespace
 
-DS3D_DEMO_STEP(60, "dynamic-feature removal: SLAM on a synthetic walking sequence",
-               [](const ds3d::demo::Context& ctx) {
-                 ds3d::synth::SynthOptions opt;
-                 opt.scenario = ds3d::synth::Scenario::kWalkingXyz;
-                 opt.num_frames = ctx.quick ? 60 : 240;
-                 opt.seed = ctx.seed;
-                 const ds3d::synth::SyntheticScene scene(opt);
-                 ds3d::Trajectory gt;
-                 for (std::size_t i = 0; i < scene.size(); ++i) {
-                   gt.push_back({scene.timestamp(i), scene.camera_pose(scene.timestamp(i))});
-                 }
-                 std::vector<Row> rows;
-                 std::vector<ds3d::AteResult> ate;
-                 for (const char* mode : {"none", "oracle-boxes", "geometric", "htx", "htx+geometric"}) {
-                   rows.push_back(run_mode(mode, scene));
-                   ate.push_back(ds3d::evaluate_ate(gt, rows.back().traj));
-                   ds3d::write_tum_trajectory(
-                       ctx.out_dir / ("dynamic_" + rows.back().mode + ".txt"), rows.back().traj);
-                 }
-                 ds3d::write_tum_trajectory(ctx.out_dir / "dynamic_groundtruth.txt", gt);
-                 write_svg(ctx.out_dir / "dynamic_trajectories.svg", gt, rows, ate);
-                 std::cout << "walking_xyz, " << scene.size() << " frames (seed " << ctx.seed
-                           << ")\n| --dynamic | keypoint precision | recall | ATE RMSE [m] |\n"
-                           << "|---|---|---|---|\n"
-                           << std::fixed << std::setprecision(3);
-                 for (std::size_t m = 0; m < rows.size(); ++m) {
-                   // `none` marks no keypoint: precision and recall are undefined there.
-                   if (rows[m].mode == "none") {
-                     std::cout << "| none | – | – | " << ate[m].rmse << " |\n";
-                   } else {
-                     std::cout << "| " << rows[m].mode << " | " << rows[m].precision << " | "
-                               << rows[m].recall << " | " << ate[m].rmse << " |\n";
-                   }
-                 }
-                 std::cout << "trajectories and dynamic_trajectories.svg written to "
-                           << ctx.out_dir.string() << "\n";
-               });
+DS3D_DEMO_STEP(
+    60, "dynamic-feature removal: SLAM on a synthetic walking sequence",
+    [](const ds3d::demo::Context& ctx) {
+      ds3d::synth::SynthOptions opt;
+      opt.scenario = ds3d::synth::Scenario::kWalkingXyz;
+      opt.num_frames = ctx.quick ? 60 : 240;
+      opt.seed = ctx.seed;
+      const ds3d::synth::SyntheticScene scene(opt);
+      ds3d::Trajectory gt;
+      for (std::size_t i = 0; i < scene.size(); ++i) {
+        gt.push_back({scene.timestamp(i), scene.camera_pose(scene.timestamp(i))});
+      }
+      std::vector<Row> rows;
+      std::vector<ds3d::AteResult> ate;
+      for (const char* mode : {"none", "oracle-boxes", "geometric", "htx", "htx+geometric"}) {
+        rows.push_back(run_mode(mode, scene));
+        ate.push_back(ds3d::evaluate_ate(gt, rows.back().traj));
+        ds3d::write_tum_trajectory(ctx.out_dir / ("dynamic_" + rows.back().mode + ".txt"),
+                                   rows.back().traj);
+      }
+      ds3d::write_tum_trajectory(ctx.out_dir / "dynamic_groundtruth.txt", gt);
+      write_svg(ctx.out_dir / "dynamic_trajectories.svg", gt, rows, ate);
+      std::cout << "walking_xyz, " << scene.size() << " frames (seed " << ctx.seed
+                << ")\n| --dynamic | keypoint precision | recall | ATE RMSE [m] |\n"
+                << "|---|---|---|---|\n"
+                << std::fixed << std::setprecision(3);
+      for (std::size_t m = 0; m < rows.size(); ++m) {
+        // `none` marks no keypoint: precision and recall are undefined there.
+        if (rows[m].mode == "none") {
+          std::cout << "| none | – | – | " << ate[m].rmse << " |\n";
+        } else {
+          std::cout << "| " << rows[m].mode << " | " << rows[m].precision << " | " << rows[m].recall
+                    << " | " << ate[m].rmse << " |\n";
+        }
+      }
+      std::cout << "trajectories and dynamic_trajectories.svg written to " << ctx.out_dir.string()
+                << "\n";
+    });

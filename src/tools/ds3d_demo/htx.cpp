@@ -39,14 +39,14 @@ void htx_demo(const ds3d::demo::Context& ctx) {
       for (const auto& b : f.boxes) visible += b.visible_pixels > 0 ? 1 : 0;
     }
   }
-  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                        .count() /
-                    static_cast<double>(frame + 1);
+  const double ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() /
+      static_cast<double>(frame + 1);
   const auto& st = source.last_stats();
   std::cout << "HTx-lite '" << det->config().profile << "' (" << weights.filename().string()
-            << ") on frame " << frame << " of walking_static: " << st.num_boxes
-            << " person boxes (" << visible << " people in view), " << st.num_foreground
-            << " of " << st.num_points << " points segmented as foreground; " << ms
+            << ") on frame " << frame << " of walking_static: " << st.num_boxes << " person boxes ("
+            << visible << " people in view), " << st.num_foreground << " of " << st.num_points
+            << " points segmented as foreground; " << ms
             << " ms per frame (preprocess + network, 1 thread)\n";
   for (const auto& b : objects.boxes_3d) {
     const Eigen::Vector3f c = b.colwise().mean().transpose();

@@ -46,8 +46,8 @@ class CompositeSource final : public DynamicObjectSource {
   std::shared_ptr<DynamicObjectSource> second_;
 };
 
-/// Options of MotionGatedSource. The defaults are the overlap gate (`htx&geometric`);
-/// `evidence` = true is the evidence gate (`htx&&geometric`, docs/dynamic.md).
+/// Options of MotionGatedSource. The defaults are the motion gate (`--gate motion`);
+/// `evidence` = true is the evidence gate (`--gate evidence`, docs/dynamic.md).
 struct MotionGateParams {
   /// Evidence gate: besides the overlap with the motion source's objects, a semantic box is kept
   /// when the motion source's raw, unconfirmed evidence inside it (χ²-tested keypoints and
@@ -73,16 +73,16 @@ struct MotionGateParams {
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 
-/// A semantic source gated by a motion source (`htx&geometric`): both run on the whole frame;
-/// a semantic object (2-D or 3-D box) is kept only where the motion source found something moving
-/// in this frame: its image rectangle overlaps one of the motion source's image boxes (and, when
-/// both carry a depth range, the depth ranges overlap) or contains pixels of its pixel mask. The
-/// result is the motion source's objects plus the kept semantic boxes, which extend a mover's
-/// evidence to the whole detected person. A detector that also boxes static furniture (the
-/// synthetic-only HTx weights on real chairs and desks, models/README.md) then removes nothing on
-/// a static scene, where `htx` alone removes the furniture's features and hurts tracking.
+/// A semantic source gated by a motion source (`--dynamic htx --gate motion`): both run on the
+/// whole frame; a semantic object (2-D or 3-D box) is kept only where the motion source found
+/// something moving in this frame: its image rectangle overlaps one of the motion source's image
+/// boxes (and, when both carry a depth range, the depth ranges overlap) or contains pixels of its
+/// pixel mask. The result is the motion source's objects plus the kept semantic boxes, which extend
+/// a mover's evidence to the whole detected person. A detector that also boxes static furniture
+/// (the synthetic-only HTx weights on real chairs and desks, models/README.md) then removes nothing
+/// on a static scene, where `htx` alone removes the furniture's features and hurts tracking.
 ///
-/// With MotionGateParams::evidence (`htx&&geometric`) a semantic 3-D box is also kept
+/// With MotionGateParams::evidence (`--gate evidence`) a semantic 3-D box is also kept
 /// on the geometric source's raw evidence inside it (its solid, or its rectangle and depth range):
 /// k of the n tested keypoints with χ² > keypoint_chi2, or k of the n tested warp grid pixels
 /// flagged, when P(X >= k) < alpha for X ~ Binomial(n, p0), with p0 the frame's rate of the same

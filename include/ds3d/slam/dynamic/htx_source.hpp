@@ -59,7 +59,7 @@ struct HtxSourceParams {
   /// rectangle and depth range alone (docs/dynamic.md).
   float box_uncertainty = 0.15F;
   /// Report the floor that preprocess found as DynamicObjects::support_plane, whose keypoints the
-  /// masker keeps static (`ds3d-slam --floor`). Off by default: it raises precision on the
+  /// masker keeps static (key `htx.report_floor`). Off by default: it raises precision on the
   /// synthetic scenes but removes fewer keypoints on recorded people (docs/dynamic.md). With
   /// segment the same floor always comes as Segmentation::segment_plane, which keeps it out of
   /// the segmentation's decisions only.
@@ -80,7 +80,7 @@ struct HtxSourceParams {
   /// unless a detected box continues it or fewer than hold_min_points foreground points of the
   /// frame lie in it (grown by box_uncertainty); it moves with their centroid. Covers detection
   /// misses of people the part head still sees (docs/dynamic.md). make_dynamic_source sets 0
-  /// under an evidence gate ("htx&&geometric").
+  /// under the evidence gate (`--gate evidence`).
   int hold_frames = 10;
   int hold_min_points = 5;  ///< foreground points that keep a carried box, >= 1
   /// Longest time [s] a box is carried after its detection, finite, >= 0: with frames far apart
@@ -96,7 +96,7 @@ struct HtxSourceParams {
   /// outside the boxes that the segmentation test confirms. Only foreground connected to a
   /// reported box counts (keep_anchored_foreground with box_uncertainty; the rest is background,
   /// HtxFrameStats::num_unanchored). Off: the segmentation decides inside the boxes only. Not
-  /// used under a motion gate ("htx&geometric", "htx&&geometric"). See docs/dynamic.md.
+  /// used under a gate (`--gate motion` or `evidence`). See docs/dynamic.md.
   bool segment_outside_boxes = true;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
