@@ -29,6 +29,7 @@
 #include "ds3d/slam/dynamic/geometric_motion.hpp"
 #include "ds3d/htx/sparse_detector.hpp"
 #include "ds3d/slam/synth.hpp"
+#include "support/cli.hpp"
 #include "support/files.hpp"
 
 namespace {
@@ -809,20 +810,8 @@ TEST(DynamicSources, MakeHtxAndCompositeFromSpec) {
   }
 }
 
-struct CliResult {
-  int code = -1;
-  std::string output;
-};
-CliResult run_cli(const std::string& args) {
-  const fs::path exe = fs::path(DS3D_BINARY_DIR) / "bin" / "ds3d-slam";
-  CliResult r;
-  FILE* p = ::popen((exe.string() + " " + args + " 2>&1").c_str(), "r");
-  if (p == nullptr) return r;
-  char buf[4096];
-  for (std::size_t n; (n = std::fread(buf, 1, sizeof(buf), p)) > 0;) r.output.append(buf, n);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+ds3d::test::ToolResult run_cli(const std::string& args) {
+  return ds3d::test::run_tool("ds3d-slam", args);
 }
 
 // The shipped HTx model (models/htx_lite_fast.safetensors), or null when it is missing.
