@@ -55,6 +55,13 @@ std::vector<ConfigKey> frontend_keys() {
           [](auto& c) -> auto& { return c.frontend.reanchor_after_lost; },
           "consecutive lost frames after which a new map segment starts"),
       key(
+          "frontend.spare_features", [](auto& c) -> auto& { return c.frontend.spare_features; },
+          "spare ORB candidates that replace keypoints the dynamic filter removes (0 = off)"),
+      key(
+          "frontend.odometry_fallback",
+          [](auto& c) -> auto& { return c.frontend.odometry_fallback; },
+          "frame-to-frame odometry when the map cannot be tracked (the frame becomes a keyframe)"),
+      key(
           "frontend.keyframe_ref_ratio",
           [](auto& c) -> auto& { return c.frontend.keyframe_ref_ratio; },
           "a keyframe is needed when the frame tracks fewer than"),
@@ -370,8 +377,8 @@ std::vector<ConfigKey> make_config_keys() {
   std::vector<ConfigKey> keys{
       key(
           "dynamic.source", [](auto& c) -> auto& { return c.dynamic; },
-          "moving-object source: none, geometric, htx, file:PATH or A+B (A, then B on what A "
-          "left)"),
+          "moving-object source: none, geometric, htx, file:PATH, mask:DIR or A+B (A, then B on "
+          "what A left)"),
       key(
           "dynamic.gate", [](auto& c) -> auto& { return c.gate; },
           "gate the source's boxes by the geometric source: none, motion or evidence"),

@@ -105,26 +105,45 @@ std::vector<std::vector<cv::KeyPoint>> detect_cells(const cv::Mat& img, const Or
 }
 
 // Round-robin over cells (best corner of every cell, then second best, ...) until `quota`:
-// spreads features evenly instead of clustering them on the strongest texture.
+// spreads features evenly instead of clustering them on the strongest texture. With `spare`,
+// the round-robin goes on for `spare_quota` more corners (the next best in the same order).
 std::vector<cv::KeyPoint> select_spread(const std::vector<std::vector<cv::KeyPoint>>& cells,
-                                        int quota) {
+                                        int quota, std::vector<cv::KeyPoint>* spare = nullptr,
+                                        int spare_quota = 0) {
   std::vector<cv::KeyPoint> out;
   std::vector<cv::KeyPoint> round;
-  for (std::size_t rank = 0; static_cast<int>(out.size()) < quota; ++rank) {
+  const auto by_response = [](const cv::KeyPoint& a, const cv::KeyPoint& b) {
+    return a.response > b.response;
+  };
+  std::size_t rank = 0;
+  for (; static_cast<int>(out.size()) < quota; ++rank) {
+    round.clear();
+    for (const auto& c : cells) {
+      if (rank < c.size()) round.push_back(c[rank]);
+    }
+    if (round.empty()) return out;
+    const auto need = static_cast<std::size_t>(quota) - out.size();
+    if (round.size() > need) {
+      std::stable_sort(round.begin(), round.end(), by_response);
+      out.insert(out.end(), round.begin(), round.begin() + static_cast<std::ptrdiff_t>(need));
+      if (spare != nullptr)
+        spare->assign(round.begin() + static_cast<std::ptrdiff_t>(need), round.end());
+      ++rank;
+      break;
+    }
+    out.insert(out.end(), round.begin(), round.end());
+  }
+  if (spare == nullptr) return out;
+  for (; static_cast<int>(spare->size()) < spare_quota; ++rank) {
     round.clear();
     for (const auto& c : cells) {
       if (rank < c.size()) round.push_back(c[rank]);
     }
     if (round.empty()) break;
-    const auto need = static_cast<std::size_t>(quota) - out.size();
-    if (round.size() > need) {
-      std::stable_sort(
-          round.begin(), round.end(),
-          [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
-      round.resize(need);
-    }
-    out.insert(out.end(), round.begin(), round.end());
+    spare->insert(spare->end(), round.begin(), round.end());
   }
+  if (static_cast<int>(spare->size()) > spare_quota)
+    spare->resize(static_cast<std::size_t>(spare_quota));
   return out;
 }
 
@@ -171,6 +190,20 @@ OrbExtractor::OrbExtractor(const OrbParams& params) : params_(params) {
 
 OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
                                   const PinholeCamera& camera) const {
+  return extract_impl(image, depth, camera, nullptr, 0);
+}
+
+OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
+                                  const PinholeCamera& camera, OrbFeatures& spare,
+                                  int spare_count) const {
+  DS3D_CHECK(spare_count >= 0, "ds3d::slam::OrbExtractor::extract: spare_count must be >= 0 (got ",
+             spare_count, ")");
+  return extract_impl(image, depth, camera, &spare, spare_count);
+}
+
+OrbFeatures OrbExtractor::extract_impl(const cv::Mat& image, const cv::Mat& depth,
+                                       const PinholeCamera& camera, OrbFeatures* spare,
+                                       int spare_count) const {
   constexpr const char* fn = "ds3d::slam::OrbExtractor::extract";
   camera.validate(fn);
   DS3D_CHECK(image.type() == CV_8UC1 || image.type() == CV_8UC3, fn,
@@ -186,10 +219,49 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
   } else {
     gray = image;
   }
-
   std::vector<cv::KeyPoint> keypoints;
+  std::vector<cv::KeyPoint> spare_kp;
+  detect_levels(gray, keypoints, spare != nullptr ? &spare_kp : nullptr, spare_count);
+  OrbFeatures out = describe_gray(gray, std::move(keypoints), depth, camera);
+  if (spare != nullptr) {
+    *spare = OrbFeatures{};
+    spare->keypoints = std::move(spare_kp);
+  }
+  return out;
+}
+
+OrbFeatures OrbExtractor::describe(const cv::Mat& image, std::vector<cv::KeyPoint> keypoints,
+                                   const cv::Mat& depth, const PinholeCamera& camera) const {
+  cv::Mat gray;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  } else {
+    gray = image;
+  }
+  return describe_gray(gray, std::move(keypoints), depth, camera);
+}
+
+OrbFeatures OrbExtractor::describe_gray(const cv::Mat& gray, std::vector<cv::KeyPoint> keypoints,
+                                        const cv::Mat& depth, const PinholeCamera& camera) const {
+  OrbFeatures out;
+  if (!keypoints.empty()) {
+    // Descriptors only: OpenCV rebuilds the same 1.2-scale pyramid and reads each keypoint at
+    // its octave with the angle computed above.
+    auto orb = cv::ORB::create(params_.num_features, static_cast<float>(params_.scale_factor),
+                               params_.num_levels, kEdge, 0, 2, cv::ORB::FAST_SCORE, 31,
+                               params_.fast_threshold);
+    orb->compute(gray, keypoints, out.descriptors);
+  }
+  out.keypoints = std::move(keypoints);
+  attach_geometry(out, depth, camera);
+  return out;
+}
+
+void OrbExtractor::detect_levels(const cv::Mat& gray, std::vector<cv::KeyPoint>& keypoints,
+                                 std::vector<cv::KeyPoint>* spare, int spare_count) const {
   keypoints.reserve(static_cast<std::size_t>(params_.num_features) + 16);
   cv::Mat level_img = gray;
+  std::vector<cv::KeyPoint> level_spare;
   for (int l = 0; l < params_.num_levels; ++l) {
     const double s = scales_[static_cast<std::size_t>(l)];
     if (l > 0) {
@@ -201,27 +273,35 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
       level_img = next;
     }
     const auto cells = detect_cells(level_img, params_);
-    auto picked = select_spread(cells, features_per_level_[static_cast<std::size_t>(l)]);
-    for (auto& k : picked) {
+    const int quota = features_per_level_[static_cast<std::size_t>(l)];
+    // The spare budget of a level follows the same geometric share as its primary one.
+    const int spare_quota = static_cast<int>(
+        std::lround(static_cast<double>(spare_count) * quota / params_.num_features));
+    level_spare.clear();
+    auto picked =
+        select_spread(cells, quota, spare != nullptr ? &level_spare : nullptr, spare_quota);
+    const auto finish = [&](cv::KeyPoint& k) {
       k.angle = ic_angle(level_img, static_cast<int>(k.pt.x), static_cast<int>(k.pt.y));
       k.pt.x = static_cast<float>(k.pt.x * s);
       k.pt.y = static_cast<float>(k.pt.y * s);
       k.size = static_cast<float>(31.0 * s);
       k.octave = l;
+    };
+    for (auto& k : picked) {
+      finish(k);
       keypoints.push_back(k);
     }
+    if (spare == nullptr) continue;
+    for (auto& k : level_spare) {
+      finish(k);
+      spare->push_back(k);
+    }
   }
+}
 
-  OrbFeatures out;
-  if (!keypoints.empty()) {
-    // Descriptors only: OpenCV rebuilds the same 1.2-scale pyramid and reads each keypoint at
-    // its octave with the angle computed above.
-    auto orb = cv::ORB::create(params_.num_features, static_cast<float>(params_.scale_factor),
-                               params_.num_levels, kEdge, 0, 2, cv::ORB::FAST_SCORE, 31,
-                               params_.fast_threshold);
-    orb->compute(gray, keypoints, out.descriptors);
-  }
-  out.keypoints = std::move(keypoints);
+// Undistorted pixels and the depth at each keypoint.
+void OrbExtractor::attach_geometry(OrbFeatures& out, const cv::Mat& depth,
+                                   const PinholeCamera& camera) const {
   out.close_depth = static_cast<float>(params_.max_depth);
   const std::size_t n = out.keypoints.size();
   out.undistorted.resize(n);
@@ -239,7 +319,6 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
       if (z >= params_.min_depth && z <= params_.max_range) out.depth[i] = static_cast<float>(z);
     }
   }
-  return out;
 }
 
 int descriptor_distance(const std::uint8_t* a, const std::uint8_t* b) noexcept {

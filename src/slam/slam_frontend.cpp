@@ -53,6 +53,7 @@ void FrontendConfig::validate() const {
              relocalisation_candidates, ")");
   DS3D_CHECK(reanchor_after_lost >= 0, f, ": reanchor_after_lost must be >= 0 (got ",
              reanchor_after_lost, ")");
+  DS3D_CHECK(spare_features >= 0, f, ": spare_features must be >= 0 (got ", spare_features, ")");
   DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");
   DS3D_CHECK(std::isfinite(keyframe_ref_ratio) && keyframe_ref_ratio > 0 && keyframe_ref_ratio <= 1,
              f, ": keyframe_ref_ratio must be in (0, 1] (got ", keyframe_ref_ratio, ")");
@@ -188,7 +189,12 @@ PreparedFrame SlamFrontend::extract(FrameInput frame) const {
   const auto t0 = Clock::now();
   const double c0 = thread_cpu_ms();
   PreparedFrame pf;
-  pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera);
+  if (impl_->cfg.spare_features > 0) {
+    pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera, pf.spare,
+                                           impl_->cfg.spare_features);
+  } else {
+    pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera);
+  }
   pf.input = std::move(frame);
   pf.times.extract_ms = ms_since(t0);
   pf.times.extract_cpu_ms = thread_cpu_ms() - c0;
@@ -208,6 +214,7 @@ void SlamFrontend::filter_dynamic(PreparedFrame& frame) {
   DS3D_CHECK(frame.dynamic.size() == frame.features.size(),
              "ds3d::slam::SlamFrontend: dynamic filter '", impl_->masker->name(), "' returned ",
              frame.dynamic.size(), " flags for ", frame.features.size(), " keypoints");
+  refill_static(frame, impl_->cfg.camera, impl_->extractor);
   frame.times.filter_ms = ms_since(t0);
 }
 

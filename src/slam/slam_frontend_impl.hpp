@@ -146,6 +146,11 @@ struct BaJob {
 
 namespace ds3d::slam {
 
+/// Moves the spare candidates of `pf` that lie clearly off the dynamic regions (outside the
+/// source's boxes and pixel mask, farther than a grid cell from each removed keypoint) into
+/// pf.features as static keypoints, at most one per removed keypoint (static_refill.cpp).
+void refill_static(PreparedFrame& pf, const PinholeCamera& camera, const OrbExtractor& extractor);
+
 // The front-end's sources use the short names.
 using detail::BaJob;
 using detail::Clock;
@@ -189,6 +194,7 @@ struct SlamFrontend::Impl {
   int ref_kf = -1;
   int last_kf_frame = 0;  // frame_counter at the last keyframe
   int lost_count = 0;
+  int segment_first_kf = 0;  // first keyframe of the current map segment (re-anchoring starts one)
   bool just_relocalized = false;
 
   // Trajectory: per frame, pose relative to its reference keyframe.
@@ -252,6 +258,7 @@ struct SlamFrontend::Impl {
   bool track_motion_model(FrameData& f, Eigen::Isometry3d& T_cw);
   bool track_keyframe(const Keyframe& kf, FrameData& f, Eigen::Isometry3d& T_cw, int min_inliers);
   bool relocalize(FrameData& f, Eigen::Isometry3d& T_cw);
+  bool track_last_frame(FrameData& f, Eigen::Isometry3d& T_cw);  // odometry.cpp
   std::vector<int> local_keyframes(const FrameData& f);
   int track_local_map(FrameData& f, Eigen::Isometry3d& T_cw);
   TrackResult track(PreparedFrame pf);

@@ -329,6 +329,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
   res.index = in.index;
   res.timestamp = in.timestamp;
   res.num_features = static_cast<int>(pf.features.size());
+  res.num_refilled = pf.num_refilled;
   res.keypoints.reserve(pf.features.size());
   for (const auto& kp : pf.features.keypoints) res.keypoints.push_back(kp.pt);
   res.keypoint_status.assign(pf.features.size(), KeypointStatus::kUnmatched);
@@ -369,6 +370,10 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
       T_cw = last_T_cw;
       ok = track_keyframe(keyframes[static_cast<std::size_t>(ref_kf)], f, T_cw, 10);
     }
+    if (!ok && last_tracked && cfg.odometry_fallback) {
+      ok = track_last_frame(f, T_cw);
+      res.odometry = ok;
+    }
     if (!ok) {
       std::fill(f.points.begin(), f.points.end(), -1);
       ok = relocalize(f, T_cw);
@@ -376,16 +381,38 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
     }
     if (ok) {
       just_relocalized = relocalized;
+      const Eigen::Isometry3d T_before = T_cw;
       inliers = track_local_map(f, T_cw);
       ok = inliers >=
            (relocalized ? std::max(50, cfg.min_tracked_inliers) : cfg.min_tracked_inliers);
+      if (!ok && res.odometry) {
+        // Too few map points to trust a map pose: keep the odometry pose, start fresh points.
+        T_cw = T_before;
+        std::fill(f.points.begin(), f.points.end(), -1);
+        ok = true;
+      }
+    }
+    if (!ok && last_tracked && !res.odometry && !relocalized && cfg.odometry_fallback) {
+      // The map was found but too weakly: frame-to-frame odometry instead of losing the frame.
+      Eigen::Isometry3d T = last_T_cw;
+      if (track_last_frame(f, T)) {
+        res.odometry = true;
+        T_cw = T;
+        inliers = track_local_map(f, T);
+        if (inliers >= cfg.min_tracked_inliers) {
+          T_cw = T;
+        } else {
+          std::fill(f.points.begin(), f.points.end(), -1);
+        }
+        ok = true;
+      }
     }
     if (ok) {
       res.state = relocalized ? TrackState::kRelocalized : TrackState::kTracking;
       lost_count = 0;
       velocity = T_cw * last_T_cw.inverse();
       velocity_valid = last_tracked;
-      if (need_keyframe(f, inliers)) {
+      if (res.odometry || need_keyframe(f, inliers)) {
         const int id = add_keyframe(f, T_cw, in);
         f = keyframes[static_cast<std::size_t>(id)].data;
         schedule_local_ba(id);
@@ -404,6 +431,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
         // bounded by the motion during the outage) instead of staying lost for ever.
         const int id = add_keyframe(f, T_cw, in);
         f = keyframes[static_cast<std::size_t>(id)].data;
+        segment_first_kf = id;
         res.state = TrackState::kReanchored;
         lost_count = 0;
         new_kf = true;

@@ -44,8 +44,9 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
-    "                 [--dynamic none|geometric|htx|file:PATH|A+B] [--gate none|motion|evidence]\n"
-    "                 [--weights PATH] [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
+    "                 [--dynamic none|geometric|htx|file:PATH|mask:DIR|A+B]\n"
+    "                 [--gate none|motion|evidence] [--weights PATH] [--max-frames N]\n"
+    "                 [--stats stats.json] [--viz OUT_DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--config FILE] [--set KEY=VALUE]...\n"
     "                 [--quiet]\n"
     "       ds3d-slam [--config FILE] [--set KEY=VALUE]... --dump-config\n"
@@ -54,9 +55,10 @@ constexpr const char* kUsage =
     "--dynamic: where boxes of moving objects come from (key dynamic.source, default none):\n"
     "  none (keep every keypoint), geometric (multi-view motion, no learned weights), htx (the\n"
     "  HTx-lite 3-D detector on the preprocessed depth), file:PATH (JSON lines, see\n"
-    "  detections.hpp), or A+B: A, then B on what A left (htx+geometric is 3DS-SLAM's\n"
-    "  semantic-then-geometric order). Keypoints in the boxes go through the box-gated HDBSCAN\n"
-    "  filter (dynamic_filter.hpp).\n"
+    "  detections.hpp), mask:DIR (one mask image per frame, named by its timestamp, non-zero =\n"
+    "  dynamic; e.g. ds3d-synth's mask/ folder), or A+B: A, then B on what A left\n"
+    "  (htx+geometric is 3DS-SLAM's semantic-then-geometric order). Keypoints in the boxes go\n"
+    "  through the box-gated HDBSCAN filter (dynamic_filter.hpp).\n"
     "--gate (key dynamic.gate, default none): motion keeps the boxes only in frames where the\n"
     "  geometric source sees motion; evidence keeps a box while the geometric source's evidence\n"
     "  inside it is significant, and tracks it (docs/dynamic.md).\n"
@@ -250,6 +252,39 @@ void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
   DS3D_CHECK_AS(ds3d::IoError, cv::imwrite(path.string(), img), "cannot write ", path.string());
 }
 
+// Per-frame counts of the run (--stats "per_frame", one array entry per frame) and their totals.
+void write_per_frame(std::ostream& js, const std::vector<ds3d::slam::TrackResult>& results) {
+  using R = ds3d::slam::TrackResult;
+  long long features = 0;
+  long long dynamic = 0;
+  for (const auto& r : results) {
+    features += r.num_features;
+    dynamic += r.num_dynamic;
+  }
+  const double fraction =
+      features > 0 ? static_cast<double>(dynamic) / static_cast<double>(features) : 0.0;
+  js << "  \"totals\": {\"features\": " << features << ", \"dynamic\": " << dynamic
+     << ", \"dynamic_fraction\": " << ds3d::detail::json_number(fraction)
+     << "},\n  \"per_frame\": {\n    \"state\": [";
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    js << (i > 0 ? ", \"" : "\"") << ds3d::slam::to_string(results[i].state) << "\"";
+  }
+  js << "]";
+  const std::vector<std::pair<const char*, int (*)(const R&)>> columns{
+      {"features", [](const R& r) { return r.num_features; }},
+      {"dynamic", [](const R& r) { return r.num_dynamic; }},
+      {"refilled", [](const R& r) { return r.num_refilled; }},
+      {"inliers", [](const R& r) { return r.num_inliers; }},
+      {"keyframe", [](const R& r) { return r.keyframe ? 1 : 0; }},
+      {"odometry", [](const R& r) { return r.odometry ? 1 : 0; }}};
+  for (const auto& [name, get] : columns) {
+    js << ",\n    \"" << name << "\": [";
+    for (std::size_t i = 0; i < results.size(); ++i) js << (i > 0 ? ", " : "") << get(results[i]);
+    js << "]";
+  }
+  js << "\n  }\n";
+}
+
 int run(const Args& a) {
   const ds3d::slam::SlamConfig& c = a.config;
   // The source first: a bad --dynamic or --weights fails before any image is read.
@@ -383,7 +418,9 @@ int run(const Args& a) {
     js << "  },\n  \"stages_cpu\": {\n";
     stage("extract", ex_cpu, true);
     stage("track", tr_cpu, false);
-    js << "  }\n}\n";
+    js << "  },\n";
+    write_per_frame(js, results);
+    js << "}\n";
     std::ofstream out(a.stats);
     out << js.str();
     DS3D_CHECK_AS(ds3d::IoError, out.good(), "cannot write ", a.stats.string());

@@ -204,3 +204,30 @@ TEST(DescriptorDistance, CountsDifferingBits) {
 }
 
 }  // namespace
+
+namespace {
+
+// The spare candidates leave the primary features unchanged, are new keypoints, and describe()
+// gives them the descriptors extract() would.
+TEST(OrbExtractor, SpareCandidatesAreExtraAndDescribable) {
+  const OrbExtractor ex;
+  const cv::Mat img = textured_image(3);
+  const auto plain = ex.extract(img, {}, plain_camera());
+  ds3d::slam::OrbFeatures spare;
+  const auto with = ex.extract(img, {}, plain_camera(), spare, 800);
+  ASSERT_EQ(with.size(), plain.size());
+  EXPECT_EQ(cv::norm(with.descriptors, plain.descriptors, cv::NORM_HAMMING), 0.0);
+  EXPECT_GT(spare.size(), 400U);
+  EXPECT_LE(spare.size(), 808U);  // per-level shares are rounded
+  EXPECT_TRUE(spare.descriptors.empty());
+  for (const auto& s : spare.keypoints) {
+    for (const auto& k : plain.keypoints) {
+      ASSERT_FALSE(s.octave == k.octave && s.pt == k.pt) << "spare candidate repeats a feature";
+    }
+  }
+  const auto described = ex.describe(img, plain.keypoints, {}, plain_camera());
+  EXPECT_EQ(cv::norm(described.descriptors, plain.descriptors, cv::NORM_HAMMING), 0.0);
+  EXPECT_THROW((void)ex.extract(img, {}, plain_camera(), spare, -1), ds3d::InvalidArgument);
+}
+
+}  // namespace

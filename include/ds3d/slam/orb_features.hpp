@@ -78,6 +78,20 @@ class OrbExtractor {
   /// @note O(pixels) time; about 1000 features on 640×480 in a few milliseconds.
   [[nodiscard]] OrbFeatures extract(const cv::Mat& image, const cv::Mat& depth,
                                     const PinholeCamera& camera) const;
+  /// As above (the returned features are the same), and fills `spare.keypoints` with about
+  /// `spare_count` further candidates (shares rounded per level): the ones the even spread
+  /// would pick next, per level in the same proportions, with their orientation (no
+  /// descriptors: describe() computes them for the ones used). A dynamic filter that removes keypoints can replace them from these
+  /// (SlamFrontend, FrontendConfig::spare_features).
+  /// @throws ds3d::InvalidArgument as above, or for spare_count < 0.
+  [[nodiscard]] OrbFeatures extract(const cv::Mat& image, const cv::Mat& depth,
+                                    const PinholeCamera& camera, OrbFeatures& spare,
+                                    int spare_count) const;
+
+  /// Descriptors, undistorted pixels and depth of given keypoints (e.g. spare candidates of
+  /// extract()), with the inputs of extract(); unchecked: the caller passes what extract() took.
+  [[nodiscard]] OrbFeatures describe(const cv::Mat& image, std::vector<cv::KeyPoint> keypoints,
+                                     const cv::Mat& depth, const PinholeCamera& camera) const;
 
   /// Scale of pyramid level `level` relative to level 0 (scale_factor^level).
   [[nodiscard]] double level_scale(int level) const {
@@ -87,6 +101,13 @@ class OrbExtractor {
   [[nodiscard]] const OrbParams& params() const noexcept { return params_; }
 
  private:
+  OrbFeatures extract_impl(const cv::Mat& image, const cv::Mat& depth, const PinholeCamera& camera,
+                           OrbFeatures* spare, int spare_count) const;
+  void detect_levels(const cv::Mat& gray, std::vector<cv::KeyPoint>& keypoints,
+                     std::vector<cv::KeyPoint>* spare, int spare_count) const;
+  OrbFeatures describe_gray(const cv::Mat& gray, std::vector<cv::KeyPoint> keypoints,
+                            const cv::Mat& depth, const PinholeCamera& camera) const;
+  void attach_geometry(OrbFeatures& out, const cv::Mat& depth, const PinholeCamera& camera) const;
   OrbParams params_;
   std::vector<double> scales_;
   std::vector<int> features_per_level_;

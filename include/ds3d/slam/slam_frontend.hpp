@@ -38,13 +38,13 @@
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
-#include "ds3d/slam/bundle_adjustment.hpp"
 #include "ds3d/camera.hpp"
 #include "ds3d/cloud.hpp"
+#include "ds3d/eval/trajectory.hpp"
+#include "ds3d/slam/bundle_adjustment.hpp"
 #include "ds3d/slam/dataset.hpp"
 #include "ds3d/slam/dynamic/objects.hpp"
 #include "ds3d/slam/orb_features.hpp"
-#include "ds3d/eval/trajectory.hpp"
 
 namespace ds3d::slam {
 
@@ -71,6 +71,19 @@ struct FrontendConfig {
   int relocalisation_candidates = 30;  ///< most recent keyframes tried when lost, >= 1
   int reanchor_after_lost = 10;  ///< consecutive lost frames after which a new map segment starts
                                  ///< at the last pose (0 = never), >= 0
+  /// Spare ORB candidates kept per frame (the ones the even spread would pick next, with
+  /// descriptors) to replace keypoints the dynamic filter removes, >= 0 (0 = off). In a frame
+  /// where people cover much of the image most of the feature budget lands on them; the
+  /// replacements keep the static background's share near orb.num_features. A spare candidate is
+  /// used only outside every source box's image rectangle, off the source's pixel mask, and
+  /// farther than one grid cell of its level (orb.cell_size × scale) from every removed keypoint.
+  int spare_features = 0;
+  /// When the map cannot be tracked (motion model, reference keyframe) or gives too few
+  /// local-map inliers, match the last frame's static keypoints with depth (back-projected
+  /// with its pose) and optimise the pose on them before falling back to relocalisation; a
+  /// frame tracked so becomes a keyframe, so the map continues from it. Off: such frames are
+  /// lost (and re-anchored after reanchor_after_lost frames).
+  bool odometry_fallback = true;
   double keyframe_ref_ratio = 0.75;  ///< a keyframe is needed when the frame tracks fewer than
                                      ///< this fraction of the reference keyframe's well-observed
                                      ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
@@ -129,12 +142,16 @@ struct TrackResult {
   double timestamp = 0;                                           ///< [s]
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();  ///< online estimate
   TrackState state = TrackState::kNotInitialized;                 ///< see TrackState
-  bool tracked = false;                ///< state is kInitialized, kTracking or kRelocalized
-  bool keyframe = false;               ///< this frame became a keyframe
-  int num_features = 0;                ///< keypoints extracted
-  int num_dynamic = 0;                 ///< keypoints the dynamic filter removed
-  int num_inliers = 0;                 ///< map-point matches kept by the last pose optimisation
-  std::vector<cv::Point2f> keypoints;  ///< raw pixel of every extracted keypoint
+  bool tracked = false;   ///< state is kInitialized, kTracking or kRelocalized
+  bool keyframe = false;  ///< this frame became a keyframe
+  /// The pose came from frame-to-frame odometry (FrontendConfig::odometry_fallback): the map
+  /// could not be tracked; the frame then became a keyframe.
+  bool odometry = false;
+  int num_features = 0;  ///< keypoints extracted
+  int num_dynamic = 0;   ///< keypoints the dynamic filter removed
+  int num_refilled = 0;  ///< spare keypoints added in their place (FrontendConfig::spare_features)
+  int num_inliers = 0;   ///< map-point matches kept by the last pose optimisation
+  std::vector<cv::Point2f> keypoints;           ///< raw pixel of every extracted keypoint
   std::vector<KeypointStatus> keypoint_status;  ///< one per keypoint
   StageTimes times;                             ///< stage timings
 };
@@ -145,7 +162,11 @@ struct PreparedFrame {
   OrbFeatures features;               ///< all extracted features
   DynamicObjects objects;             ///< from the dynamic-object source
   std::vector<std::uint8_t> dynamic;  ///< one per feature, non-zero = removed
-  StageTimes times;                   ///< extract/detect/filter filled in
+  /// Spare candidates of the extractor (FrontendConfig::spare_features); the dynamic stage
+  /// appends the ones it uses to `features` (with dynamic = 0) and clears this.
+  OrbFeatures spare;
+  int num_refilled = 0;  ///< spare candidates appended to `features`
+  StageTimes times;      ///< extract/detect/filter filled in
 };
 
 /// A timestamped pose (camera-to-world).

@@ -44,7 +44,7 @@ std::filesystem::path find_default_weights() {
 std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec,
                                                          const DynamicSourceOptions& options) {
   constexpr const char* kKnown =
-      "none, geometric, htx, file:PATH or A+B (e.g. htx+geometric); gates are a separate "
+      "none, geometric, htx, file:PATH, mask:DIR or A+B (e.g. htx+geometric); gates are a separate "
       "setting (SlamConfig::gate, --gate motion|evidence)";
   if (spec == "none") return std::make_shared<NoDynamicObjects>();
   if (spec == "geometric") return std::make_shared<GeometricMotionSource>(options.geometric);
@@ -53,6 +53,12 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
     DS3D_CHECK(!path.empty(), "ds3d::slam::make_dynamic_source: 'file:' needs a path (got '", spec,
                "')");
     return std::make_shared<FileSource>(path, options.file);
+  }
+  if (spec.rfind("mask:", 0) == 0) {
+    const std::string dir = spec.substr(5);
+    DS3D_CHECK(!dir.empty(), "ds3d::slam::make_dynamic_source: 'mask:' needs a folder (got '", spec,
+               "')");
+    return std::make_shared<MaskSource>(dir, options.file.max_dt);
   }
   if (spec == "htx") {
     const std::filesystem::path weights =
@@ -69,7 +75,8 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
     const std::string b = spec.substr(plus + 1);
     // Both names are checked before either source is built (an htx source loads its weights).
     const auto simple = [](const std::string& x) {
-      return x == "geometric" || x == "htx" || (x.rfind("file:", 0) == 0 && x.size() > 5);
+      return x == "geometric" || x == "htx" ||
+             ((x.rfind("file:", 0) == 0 || x.rfind("mask:", 0) == 0) && x.size() > 5);
     };
     DS3D_CHECK(simple(a) && (simple(b) || b.find('+') != std::string::npos),
                "ds3d::slam::make_dynamic_source: '", spec,

@@ -4,7 +4,7 @@
 /// @file dynamic_sources.hpp
 /// @brief The dynamic-object sources by name (ds3d::slam; OpenCV): make_dynamic_source builds the
 /// source of a `--dynamic` value, with the default HTx weights lookup. Includes every source's
-/// header: FileSource (file_source.hpp), HdbscanMasker (hdbscan_masker.hpp), HtxSource
+/// header: FileSource (file_source.hpp), MaskSource (mask_source.hpp), HdbscanMasker (hdbscan_masker.hpp), HtxSource
 /// (htx_source.hpp), CompositeSource and MotionGatedSource (combinators.hpp),
 /// GeometricMotionSource (geometric_motion.hpp), and image_boxes / keypoint_array (boxes.hpp).
 
@@ -16,6 +16,7 @@
 #include "ds3d/slam/dynamic/boxes.hpp"
 #include "ds3d/slam/dynamic/combinators.hpp"
 #include "ds3d/slam/dynamic/file_source.hpp"
+#include "ds3d/slam/dynamic/mask_source.hpp"
 #include "ds3d/slam/dynamic/geometric_motion.hpp"
 #include "ds3d/slam/dynamic/hdbscan_masker.hpp"
 #include "ds3d/slam/dynamic/htx_source.hpp"
@@ -44,7 +45,8 @@ struct DynamicSourceOptions {
 };
 
 /// Builds the source named by a `--dynamic` option value: "none", "file:PATH" (FileSource with
-/// options.file; the rest of the string is the path), "geometric" (GeometricMotionSource with
+/// options.file; the rest of the string is the path), "mask:DIR" (MaskSource with
+/// options.file.max_dt: per-frame mask images), "geometric" (GeometricMotionSource with
 /// options.geometric), "htx" (HtxSource, weights and parameters from `options`), or "A+B" with A
 /// and B any of these but none (CompositeSource: A, then B on what A left), e.g.
 /// "htx+geometric". Gating by the geometric source (MotionGatedSource) is a separate setting:
