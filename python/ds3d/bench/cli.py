@@ -88,6 +88,8 @@ def plan(suite, out, tools):
                           "stop": seq["frames"][1]}
                 preps.append({"dir": seq_dir, "recipe": recipe})
             for conf in suite["configs"]:
+                if conf["name"] in seq["skip_configs"]:
+                    continue
                 cells.append({"id": cell_id(seq, conf, seed), "sequence": seq["name"], "config": conf["name"],
                               "seed": seed, "seq_dir": seq_dir, "groundtruth": gt,
                               "slam_args": slam_args(seq, conf, seq_dir),

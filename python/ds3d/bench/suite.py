@@ -8,7 +8,8 @@ import pathlib
 import re
 
 SUITE_KEYS = {"name", "out", "sequences", "configs", "seeds", "eval", "threads_per_run"}
-SEQ_KEYS = {"path", "glob", "synth", "name", "groundtruth", "frames", "camera", "seeds", "max_frames"}
+SEQ_KEYS = {"path", "glob", "synth", "name", "groundtruth", "frames", "camera", "seeds", "max_frames",
+            "skip_configs"}
 SYNTH_KEYS = {"scenario", "frames", "humans", "fps", "parts", "no_noise", "room", "furniture",
               "detection_errors", "args"}
 CONFIG_KEYS = {"name", "config", "dynamic", "gate", "weights", "set", "args", "max_frames"}
@@ -160,8 +161,12 @@ def parse_sequences(data, base, seeds, warnings):
         if len(kinds) != 1:
             _fail(where, f"needs exactly one of path, glob, synth (got {kinds or 'none'})")
         found = _synthetic(entry, where, seeds) if kinds[0] == "synth" else _recorded(entry, base, where, warnings)
+        skip = entry.get("skip_configs", [])
+        if not isinstance(skip, list) or not all(isinstance(n, str) for n in skip):
+            _fail(where, f"skip_configs must be a list of configuration names (got {skip!r})")
         for s in found:
             s["camera"] = entry.get("camera")
+            s["skip_configs"] = skip
             mf = entry.get("max_frames")
             if mf is not None and (not isinstance(mf, int) or mf < 1):
                 _fail(where, f"max_frames must be an integer >= 1 (got {mf!r})")
