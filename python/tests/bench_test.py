@@ -69,11 +69,12 @@ def test_local_run_writes_table_plots_and_cells(local):
 
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")  # tornado make_current, Debian 12
-def test_dask_cluster_matches_local_run(local):
+def test_dask_cluster_matches_local_run(local, monkeypatch):
     distributed = pytest.importorskip("distributed")
     # spawned workers import ds3d from the same place as this test
     pkg = str(pathlib.Path(bench.__file__).resolve().parents[2])
-    os.environ["PYTHONPATH"] = os.pathsep.join([pkg] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
+    old = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([pkg] + old))
     out = local["tmp"] / "dask"
     with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None,
                                   silence_logs=40) as cluster:
