@@ -93,15 +93,16 @@ def sigmoid_focal_loss(logits, target, alpha=0.25, gamma=2.0):
     return w * (1 - pt) ** gamma * ce
 
 
-def part_loss(part_logits, label, part_target, weights=SUNRGBD_WEIGHTS):
+def part_loss(part_logits, label, part_target, weights=SUNRGBD_WEIGHTS, npos=None):
     """Part-A2 point losses (seed eq. 3): foreground focal loss normalised by #positives over
     non-ignored points, plus BCE(sigmoid(part logits), targets) summed over xyz on foreground
-    points, divided by 3 max(1, #fg). part_logits [n, 4] (fg, part x, y, z)."""
+    points, divided by 3 max(1, #fg). part_logits [n, 4] (fg, part x, y, z). ``npos``: the
+    normaliser max(1, #fg) to use instead (data-parallel training: the global batch's)."""
     label = torch.as_tensor(label)
     tgt = torch.as_tensor(part_target, dtype=torch.float32)
     fg = label > 0
     care = (label >= 0).float()
-    npos = max(int(fg.sum()), 1)
+    npos = max(int(fg.sum()), 1) if npos is None else npos
     l_fg = (sigmoid_focal_loss(part_logits[:, 0], fg.float()) * care).sum() / npos
     bce = F.binary_cross_entropy_with_logits(part_logits[:, 1:], tgt, reduction="none").sum(dim=1)
     l_part = (bce * fg.float()).sum() / (3.0 * npos)

@@ -153,11 +153,14 @@ def batched_forward(model, samples, with_parts=True):
     return outs
 
 
-def batch_loss(model, samples, weights):
+def batch_loss(model, samples, weights, scenes=None, count_fg=None):
     """Mean over the scenes of seed eq. 1 (all decoder layers) plus seed eq. 3 on all points of
     the batch at once (weighted by weights['part_fg'/'part_loc']): Part-A2 normalises by the
     batch's number of foreground points (OpenPCDet's pos_normalizer), so a scene without people
-    does not divide its background loss by 1. Returns (loss, mean components)."""
+    does not divide its background loss by 1. Returns (loss, mean components).
+    Data-parallel share (ds3d.htx.distributed): ``scenes`` is the global batch size the
+    detection loss is divided by, ``count_fg(n)`` the global foreground count of a local n."""
+    denom = len(samples) if scenes is None else scenes
     with_parts = weights["part_fg"] > 0 or weights["part_loc"] > 0
     outs = batched_forward(model, samples, with_parts)
     total, comps = 0.0, {}
@@ -165,14 +168,15 @@ def batch_loss(model, samples, weights):
         tgt = box_targets(s["boxes"], s["classes"], out["scene_min"].detach().numpy(),
                           out["scene_max"].detach().numpy(), model.config["num_angle_bins"])
         loss, parts = detection_loss(out["layers"], tgt, weights)
-        total = total + loss / len(samples)
+        total = total + loss / denom
         for k, v in parts.items():
-            comps[k] = comps.get(k, 0.0) + v / len(samples)
+            comps[k] = comps.get(k, 0.0) + v / denom
     if with_parts:
         logits = torch.cat([o["part_logits"] for o in outs])
         label = np.concatenate([s["label"] for s in samples]).astype(np.int64)
         part = np.concatenate([s["part"] for s in samples])
-        pl, pp = part_loss(logits, label, part, weights)
+        npos = None if count_fg is None else max(count_fg(int((label > 0).sum())), 1)
+        pl, pp = part_loss(logits, label, part, weights, npos)
         total = total + pl
         comps.update(pp)
     return total, comps
@@ -189,11 +193,14 @@ def lr_at(step, total, base, warmup):
 
 class Trainer:
     """Holds model, optimiser, data order and history; ``state_dict``/``load_state_dict`` cover
-    everything needed to resume bit-identically (model, optimiser, both RNGs, step, history)."""
+    everything needed to resume bit-identically (model, optimiser, both RNGs, step, history).
+    With a ``ctx`` (ds3d.htx.distributed.DistContext) it is one rank of a data-parallel run:
+    every rank draws the same global batch and computes its share under DistributedDataParallel."""
 
-    def __init__(self, dataset, args):
+    def __init__(self, dataset, args, ctx=None):
         self.ds = dataset
         self.args = args
+        self.ctx = ctx
         self.model = train_mode(new_model(args.profile, args.seed, args.dropout, args.head_dropout))
         self.opt = torch.optim.AdamW(self.model.parameters(), lr=args.lr, weight_decay=args.weight_decay)
         self.rng = np.random.default_rng(args.seed)
@@ -203,6 +210,15 @@ class Trainer:
         self.order = np.zeros(0, np.int64)
         self.cursor = 0
         self.set_dataset(dataset)
+        self.ddp = None
+        if ctx is not None:
+            from . import distributed
+
+            if args.batch % ctx.world:
+                raise ValueError(f"ds3d.htx.train: --batch {args.batch} is not divisible by the "
+                                 f"{ctx.world} processes")
+            distributed.sync_batchnorm(self.model, ctx)
+            self.ddp = distributed.wrap(self.model, self.weights, batch_loss, ctx, args.batch)
 
     def set_dataset(self, dataset):
         # batched_forward needs equal token counts: scenes with fewer points than tokens are skipped
@@ -230,13 +246,21 @@ class Trainer:
         for g in self.opt.param_groups:
             g["lr"] = lr
         self.opt.zero_grad(set_to_none=True)
-        samples = []
-        for i in self.next_indices(a.batch):
-            s = self.ds[i]
-            samples.append(mirror(s) if self.rng.random() < 0.5 else s)
-        loss, comps = batch_loss(self.model, samples, self.weights)
-        loss.backward()
-        total = float(loss)
+        idx = self.next_indices(a.batch)
+        flips = [self.rng.random() < 0.5 for _ in idx]  # every rank draws the whole global batch
+        if self.ctx is not None:
+            idx, flips = self.ctx.shard(idx), self.ctx.shard(flips)
+        samples = [mirror(self.ds[i]) if f else self.ds[i] for i, f in zip(idx, flips)]
+        if self.ctx is None:
+            loss, comps = batch_loss(self.model, samples, self.weights)
+            loss.backward()
+            total = float(loss)
+        else:  # DDP averages the gradients: world x this rank's share gives the global loss's
+            loss, comps = self.ddp(samples)
+            (loss * self.ctx.world).backward()
+            keys = sorted(comps)
+            sums = self.ctx.sum_floats([float(loss)] + [comps[k] for k in keys])
+            total, comps = sums[0], dict(zip(keys, sums[1:]))
         gn = torch.nn.utils.clip_grad_norm_(self.model.parameters(), a.clip)
         self.opt.step()
         self.step += 1
@@ -249,23 +273,35 @@ class Trainer:
         return rec
 
     def state_dict(self):
-        return {"model": self.model.state_dict(), "opt": self.opt.state_dict(),
-                "rng": self.rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
-                "step": self.step, "history": self.history, "order": self.order, "cursor": self.cursor,
-                "config": self.model.config, "args": vars(self.args)}
+        st = {"model": self.model.state_dict(), "opt": self.opt.state_dict(),
+              "rng": self.rng.bit_generator.state, "torch_rng": torch.get_rng_state(),
+              "step": self.step, "history": self.history, "order": self.order, "cursor": self.cursor,
+              "config": self.model.config, "args": vars(self.args)}
+        if self.ctx is not None:  # collective: every rank calls it; each rank's dropout stream
+            st["torch_rng_ranks"] = self.ctx.gather_objects(torch.get_rng_state())
+        return st
 
     def load_state_dict(self, st):
         self.model.load_state_dict(st["model"])
         self.opt.load_state_dict(st["opt"])
         self.rng.bit_generator.state = st["rng"]
-        torch.set_rng_state(st["torch_rng"])
+        ranks = st.get("torch_rng_ranks")
+        if self.ctx is not None and ranks is not None and len(ranks) == self.ctx.world:
+            torch.set_rng_state(ranks[self.ctx.rank])
+        else:
+            torch.set_rng_state(st["torch_rng"])
         self.step, self.history = st["step"], st["history"]
         self.order, self.cursor = np.asarray(st["order"]), st["cursor"]
 
     def save(self, path):
-        tmp = str(path) + ".tmp"
-        torch.save(self.state_dict(), tmp)
-        os.replace(tmp, path)
+        """Writes the checkpoint atomically (rank 0 only; every rank must call it)."""
+        st = self.state_dict()
+        if self.ctx is None or self.ctx.is_main:
+            tmp = str(path) + ".tmp"
+            torch.save(st, tmp)
+            os.replace(tmp, path)
+        if self.ctx is not None:
+            self.ctx.barrier()
 
 
 def load_checkpoint_model(path):
@@ -379,11 +415,23 @@ def main(argv=None, stream=sys.stderr):
         export_checkpoint(e.checkpoint, e.out, e.threshold)
         return None
     a = parse_args(argv)
+    from . import distributed
+
+    ctx = distributed.init_from_env()
+    try:
+        return _run(a, ctx, stream if ctx is None or ctx.is_main else open(os.devnull, "w"))
+    finally:
+        distributed.shutdown(ctx)
+
+
+def _run(a, ctx, stream):
+    """The training loop of main: rank 0 (or the single process) writes log, plot and checkpoints."""
+    main_rank = ctx is None or ctx.is_main
     torch.set_num_threads(a.threads)
     out = pathlib.Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     ds = HtxDataset(a.data)
-    tr = Trainer(ds, a)
+    tr = Trainer(ds, a, ctx)
     ck = out / "checkpoint.pt"
     if ck.exists() and not a.no_resume:
         tr.load_state_dict(torch.load(ck, map_location="cpu"))
@@ -391,7 +439,7 @@ def main(argv=None, stream=sys.stderr):
     snaps = {int(s) for s in a.snapshot_steps.split(",") if s.strip()}
     t0, c0 = time.time(), time.process_time()
     last_ck = t0
-    log = open(out / "log.jsonl", "a", encoding="utf-8")
+    log = open(out / "log.jsonl" if main_rank else os.devnull, "a", encoding="utf-8")
     try:
         end = min(a.steps, a.stop_step) if a.stop_step > 0 else a.steps
         while tr.step < end:
@@ -407,9 +455,13 @@ def main(argv=None, stream=sys.stderr):
             if tr.step in snaps:
                 tr.save(out / f"checkpoint_{tr.step}.pt")
             timeout = a.max_minutes > 0 and time.time() - t0 > 60 * a.max_minutes
-            if time.time() - last_ck > 60 * a.ckpt_minutes or tr.step == end or timeout:
+            save = time.time() - last_ck > 60 * a.ckpt_minutes or tr.step == end or timeout
+            if ctx is not None:  # clock decisions are rank 0's, so that every rank saves / stops
+                save, timeout = ctx.broadcast_flags([save, timeout])
+            if save:
                 tr.save(ck)
-                plot_loss(tr.history, out / "loss.png")
+                if main_rank:
+                    plot_loss(tr.history, out / "loss.png")
                 last_ck = time.time()
             if timeout:
                 stream.write(f"\nstopped by --max-minutes at step {tr.step}\n")
@@ -418,7 +470,8 @@ def main(argv=None, stream=sys.stderr):
         log.close()
     if tr.step > 0:
         tr.save(ck)
-        plot_loss(tr.history, out / "loss.png")
+        if main_rank:
+            plot_loss(tr.history, out / "loss.png")
     stream.write("\n")
     return tr
 
