@@ -4,7 +4,9 @@
 
 #include <array>
 #include <cmath>
+#include <iostream>
 #include <map>
+#include <optional>
 #include <string>
 #include <system_error>
 
@@ -117,6 +119,41 @@ PinholeCamera read_camera_file(const fs::path& path) {
   return parse_camera_text(detail::read_text_file(path, "ds3d::read_camera_file"), path.string());
 }
 
+std::optional<std::string> camera_preset_for_folder(const fs::path& dir) {
+  fs::path p = dir.lexically_normal();
+  if (!p.has_filename()) p = p.parent_path();  // "a/b/" -> "a/b"
+  const std::string name = p.filename().string();
+  const auto starts = [&](std::string_view prefix) { return name.rfind(prefix, 0) == 0; };
+  if (starts("rgbd_dataset_freiburg1_")) return "tum1";
+  if (starts("rgbd_dataset_freiburg2_")) return "tum2";
+  if (starts("rgbd_dataset_freiburg3_")) return "tum3";
+  if (starts("rgbd_bonn_")) return "bonn";
+  return std::nullopt;
+}
+
+namespace {
+
+/// Camera of a folder without camera.txt: the preset its name selects, else the ROS default. Says
+/// which on stderr (one line), loudly when nothing identified the camera.
+PinholeCamera camera_without_file(const fs::path& dir) {
+  const auto preset = camera_preset_for_folder(dir);
+  const PinholeCamera c = camera_preset(preset.value_or("tum_ros"));
+  if (preset) {
+    std::cerr << "ds3d: info: no camera.txt in '" << dir.string() << "'; folder name -> preset '"
+              << *preset << "' (fx " << c.fx << " fy " << c.fy << " cx " << c.cx << " cy " << c.cy
+              << ")\n";
+  } else {
+    std::cerr << "ds3d: WARNING: no camera.txt in '" << dir.string()
+              << "' and no known dataset folder name: using default intrinsics 'tum_ros' (fx "
+              << c.fx << " fy " << c.fy << " cx " << c.cx << " cy " << c.cy
+              << ", no distortion, depth_scale " << c.depth_scale
+              << "); add camera.txt or pass a camera if they are wrong\n";
+  }
+  return c;
+}
+
+}  // namespace
+
 RgbdDataset RgbdDataset::open(const fs::path& dir, const DatasetOptions& options) {
   constexpr const char* kFn = "ds3d::RgbdDataset::open";
   DS3D_CHECK(std::isfinite(options.max_difference) && options.max_difference >= 0, kFn,
@@ -141,7 +178,7 @@ RgbdDataset RgbdDataset::open(const fs::path& dir, const DatasetOptions& options
   } else if (fs::is_regular_file(dir / "camera.txt", ec)) {
     ds.camera_ = read_camera_file(dir / "camera.txt");
   } else {
-    ds.camera_ = camera_preset("tum_ros");
+    ds.camera_ = camera_without_file(dir);
   }
   std::vector<double> ts_rgb(rgb.size());
   std::vector<double> ts_depth(depth.size());

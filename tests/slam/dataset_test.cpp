@@ -6,9 +6,11 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -139,6 +141,49 @@ TEST(CameraPreset, KnownNamesAndFiles) {
     EXPECT_EQ(c.k3, p.k3);
     EXPECT_EQ(c.depth_scale, 5000.0);
   }
+}
+
+// A folder without camera.txt: standard TUM / Bonn folder names select their calibrated preset
+// (one info line on stderr), any other name the ROS default with a one-line warning.
+TEST(CameraPreset, FromFolderNameWithoutCameraFile) {
+  const fs::path root = fs::temp_directory_path() / ("ds3d_folders_" + std::to_string(::getpid()));
+  const std::pair<const char*, const char*> cases[] = {
+      {"rgbd_dataset_freiburg1_xyz", "tum1"},
+      {"rgbd_dataset_freiburg2_desk", "tum2"},
+      {"rgbd_dataset_freiburg3_walking_xyz", "tum3"},
+      {"rgbd_bonn_crowd", "bonn"},
+      {"my_recording", nullptr},
+      {"freiburg1_xyz", nullptr}};
+  for (const auto& [name, preset] : cases) {
+    SCOPED_TRACE(name);
+    const fs::path dir = root / name;
+    fs::create_directories(dir);
+    write_text(dir / "rgb.txt", "1.0 rgb/0.png\n");
+    write_text(dir / "depth.txt", "1.0 depth/0.png\n");
+    ::testing::internal::CaptureStderr();
+    const auto ds = ds3d::RgbdDataset::open(dir);
+    const std::string err = ::testing::internal::GetCapturedStderr();
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    const auto p = ds3d::camera_preset(preset != nullptr ? preset : "tum_ros");
+    EXPECT_EQ(ds.camera().fx, p.fx);
+    EXPECT_EQ(ds.camera().cy, p.cy);
+    EXPECT_EQ(ds.camera().k1, p.k1);
+    if (preset != nullptr) {
+      EXPECT_EQ(ds3d::camera_preset_for_folder(dir / ""), std::string(preset));
+      EXPECT_NE(err.find("info"), std::string::npos) << err;
+      EXPECT_NE(err.find(std::string("'") + preset + "'"), std::string::npos) << err;
+    } else {
+      EXPECT_FALSE(ds3d::camera_preset_for_folder(dir).has_value());
+      EXPECT_NE(err.find("WARNING"), std::string::npos) << err;
+      EXPECT_NE(err.find("fx 525"), std::string::npos) << err;
+    }
+    // camera.txt still wins, silently.
+    write_text(dir / "camera.txt", "fx 500\nfy 501\ncx 3.5\ncy 2.5\n");
+    ::testing::internal::CaptureStderr();
+    EXPECT_EQ(ds3d::RgbdDataset::open(dir).camera().fx, 500.0);
+    EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  }
+  fs::remove_all(root);
 }
 
 TEST(CameraFile, RejectsBadContent) {

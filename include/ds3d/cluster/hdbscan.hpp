@@ -63,6 +63,10 @@ struct HdbscanParams {
   int max_cluster_size = 0;  ///< EOM: never select clusters larger than this; 0 = no limit, >= 0
   MstAlgorithm algorithm = MstAlgorithm::kAuto;  ///< MST construction
   int num_threads = 1;  ///< threads for kNN and Borůvka; 0 = hardware concurrency, >= 0
+  /// Prim (coordinates) only: order equal-weight merges as the reference does (numpy's quicksort
+  /// of Prim's (previous, new) node pairs) instead of a stable sort of the MST edges, so that
+  /// points whose cluster depends on such ties match it too. Off: existing results unchanged.
+  bool reference_tie_order = false;
   /// Throws ds3d::InvalidArgument naming the first bad field and its value.
   void validate() const;
 };
@@ -108,6 +112,9 @@ struct HdbscanResult {
   /// 1 when undefined). Has one entry more than num_clusters only when allow_single_cluster
   /// selected the root and no point passed the root-label rule (all noise), like the reference.
   std::vector<double> cluster_persistence;
+  /// Condensed-tree id (>= n) of each selected cluster, in label order (the reference's
+  /// `_select_clusters()`, sorted); same length as cluster_persistence.
+  std::vector<std::int64_t> selected_clusters;
   int num_clusters = 0;           ///< number of labels in use (max label + 1)
   int min_samples_effective = 0;  ///< k actually used (after clamping)
 };

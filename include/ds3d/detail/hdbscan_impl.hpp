@@ -13,11 +13,12 @@
 #include <string>
 #include <vector>
 
+#include "ds3d/cluster/hdbscan.hpp"
 #include "ds3d/detail/kdtree_nd.hpp"
 #include "ds3d/detail/mst.hpp"
+#include "ds3d/detail/numpy_argsort.hpp"
 #include "ds3d/detail/parallel.hpp"
 #include "ds3d/errors.hpp"
-#include "ds3d/cluster/hdbscan.hpp"
 
 namespace ds3d {
 
@@ -124,6 +125,66 @@ inline std::vector<SingleLinkageRow> single_linkage(std::vector<MstEdge>& mst, s
     const auto b = uf.node(rb);
     slt.push_back({a, b, e.weight, uf.unite(ra, rb)});
   }
+  return slt;
+}
+
+/// Prim exactly as the reference's `mst_linkage_core_vector` (unsquared keys, a key replaced only
+/// by a strictly smaller one, the first index of the smallest key wins), for
+/// HdbscanParams::reference_tie_order: O(n²·D), no SIMD, so equal weights pick the same nodes.
+inline std::vector<MstEdge> prim_reference(const double* data, std::size_t n, std::size_t dim,
+                                           const std::vector<double>& core) {
+  std::vector<MstEdge> edges;
+  edges.reserve(n - 1);
+  std::vector<double> key(n, std::numeric_limits<double>::infinity());
+  std::vector<std::uint32_t> src(n, 0);
+  std::vector<char> in_tree(n, 0);
+  std::uint32_t cur = 0;
+  for (std::size_t step = 1; step < n; ++step) {
+    in_tree[cur] = 1;
+    double best = std::numeric_limits<double>::max();
+    std::uint32_t next = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      if (in_tree[j]) continue;
+      const double d = std::sqrt(sq_dist_seq(data + cur * dim, data + j * dim, dim));
+      const double mr = std::max({d, core[j], core[cur]});
+      if (mr < key[j]) {
+        key[j] = mr;
+        src[j] = cur;
+      }
+      if (key[j] < best) {
+        best = key[j];
+        next = static_cast<std::uint32_t>(j);
+      }
+    }
+    edges.push_back({src[next], next, best});
+    cur = next;
+  }
+  return edges;
+}
+
+/// Rule 4 with the reference's order under ties (HdbscanParams::reference_tie_order): `mst` is in
+/// Prim order from node 0; the reference links each new node to the node added just before it
+/// and argsorts the weights with numpy's quicksort.
+inline std::vector<SingleLinkageRow> single_linkage_reference_order(std::vector<MstEdge>& mst,
+                                                                    std::size_t n) {
+  std::vector<double> w(mst.size());
+  for (std::size_t i = 0; i < mst.size(); ++i) w[i] = mst[i].weight;
+  const auto order = numpy_argsort(w);
+  std::vector<MstEdge> sorted;
+  sorted.reserve(mst.size());
+  std::vector<SingleLinkageRow> slt;
+  slt.reserve(mst.size());
+  LinkageUnionFind uf(n);
+  for (const auto i : order) {
+    sorted.push_back(mst[i]);
+    const std::uint32_t prev = i == 0 ? 0U : mst[i - 1].to;
+    const auto ra = uf.root(prev);
+    const auto rb = uf.root(mst[i].to);
+    const auto a = uf.node(ra);
+    const auto b = uf.node(rb);
+    slt.push_back({a, b, mst[i].weight, uf.unite(ra, rb)});
+  }
+  mst = std::move(sorted);
   return slt;
 }
 
@@ -387,6 +448,7 @@ inline void finish_result(HdbscanResult& res, const HdbscanParams& p, std::size_
   // none, rule 10; it still has a persistence entry, as in the reference).
   res.num_clusters = 0;
   for (const auto l : res.labels) res.num_clusters = std::max(res.num_clusters, l + 1);
+  res.selected_clusters = clusters;
   res.cluster_persistence.assign(clusters.size(), 1.0);
   std::vector<std::int64_t> members(clusters.size(), 0);
   for (const auto l : res.labels) {
@@ -402,8 +464,10 @@ inline void finish_result(HdbscanResult& res, const HdbscanParams& p, std::size_
 
 /// Everything after the core distances and the MST.
 inline void hdbscan_from_mst(HdbscanResult& res, std::vector<MstEdge> mst, const HdbscanParams& p,
-                             std::size_t n) {
-  res.single_linkage_tree = single_linkage(mst, n);
+                             std::size_t n, bool prim_order = false) {
+  res.single_linkage_tree = prim_order && p.reference_tie_order
+                                ? single_linkage_reference_order(mst, n)
+                                : single_linkage(mst, n);
   res.min_spanning_tree = std::move(mst);
   res.condensed_tree = condense_tree(res.single_linkage_tree, n, p.min_cluster_size);
   finish_result(res, p, n);
@@ -454,7 +518,10 @@ inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const Hdbscan
       params.algorithm == MstAlgorithm::kBoruvka ||
       (params.algorithm == MstAlgorithm::kAuto && n >= detail::kBoruvkaMinPoints && dim <= 8);
   std::vector<MstEdge> mst;
-  if (use_boruvka) {
+  if (!use_boruvka && params.reference_tie_order) {
+    res.core_distances = detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads);
+    mst = detail::prim_reference(data.data(), n, dim, res.core_distances);
+  } else if (use_boruvka) {
     mst = detail::boruvka_kdtree(data.data(), n, dim, static_cast<std::size_t>(k), threads,
                                  res.core_distances);
   } else {
@@ -465,7 +532,7 @@ inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const Hdbscan
                              : detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads);
     mst = detail::prim_dense(data.data(), n, dim, res.core_distances);
   }
-  detail::hdbscan_from_mst(res, std::move(mst), params, n);
+  detail::hdbscan_from_mst(res, std::move(mst), params, n, !use_boruvka);
   return res;
 }
 

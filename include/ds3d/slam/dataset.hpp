@@ -40,6 +40,12 @@ struct RgbdFrame {
 /// @throws ds3d::InvalidArgument for any other name (the message lists the valid ones).
 [[nodiscard]] PinholeCamera camera_preset(std::string_view name);
 
+/// Preset for a dataset folder without camera.txt, from the standard folder names of the TUM
+/// RGB-D benchmark (`rgbd_dataset_freiburg1_*` -> "tum1", `rgbd_dataset_freiburg2_*` -> "tum2",
+/// `rgbd_dataset_freiburg3_*` -> "tum3") and the Bonn RGB-D Dynamic dataset (`rgbd_bonn_*` ->
+/// "bonn"); std::nullopt for any other name. Only the last component of `dir` is looked at.
+[[nodiscard]] std::optional<std::string> camera_preset_for_folder(const std::filesystem::path& dir);
+
 /// Parses camera.txt content: one `key value` per line, '#' comments; keys fx fy cx cy (required),
 /// k1 k2 p1 p2 k3 (default 0), depth_scale (default 5000), width height (default 640 480).
 /// @param text   the file's content
@@ -87,7 +93,9 @@ class RgbdDataset {
   ///         depth image that is not 16-bit single-channel, or rgb/depth of different sizes.
   [[nodiscard]] RgbdFrame frame(std::size_t i) const;
 
-  /// options.camera, else camera.txt in the folder, else camera_preset("tum_ros").
+  /// options.camera, else camera.txt in the folder, else the preset of a recognised folder name
+  /// (camera_preset_for_folder(); one info line on stderr names it), else camera_preset("tum_ros")
+  /// with a one-line warning on stderr.
   [[nodiscard]] const PinholeCamera& camera() const;
 
   /// The folder given to open().

@@ -45,6 +45,7 @@ void bind_hdbscan(py::module_& m) {
       .def_readwrite("max_cluster_size", &ds3d::HdbscanParams::max_cluster_size)
       .def_readwrite("algorithm", &ds3d::HdbscanParams::algorithm)
       .def_readwrite("num_threads", &ds3d::HdbscanParams::num_threads)
+      .def_readwrite("reference_tie_order", &ds3d::HdbscanParams::reference_tie_order)
       .def("validate", &ds3d::HdbscanParams::validate);
   py::class_<ds3d::HdbscanResult>(m, "HdbscanResultRaw",
                                   "See ds3d::HdbscanResult; ds3d.hdbscan() wraps it.")
@@ -59,6 +60,10 @@ void bind_hdbscan(py::module_& m) {
       .def_property_readonly(
           "cluster_persistence",
           [](const ds3d::HdbscanResult& r) { return to_numpy(r.cluster_persistence); })
+      .def_property_readonly(
+          "selected_clusters",
+          [](const ds3d::HdbscanResult& r) { return to_numpy(r.selected_clusters); },
+          "condensed-tree id of each selected cluster, in label order")
       .def_readonly("num_clusters", &ds3d::HdbscanResult::num_clusters)
       .def_readonly("min_samples_effective", &ds3d::HdbscanResult::min_samples_effective)
       .def_property_readonly(
