@@ -40,7 +40,7 @@ int usage(const std::string& msg) {
 
 double to_double(const std::string& flag, const std::string& v) {
   const auto d = ds3d::detail::parse_py_float(v);
-  if (!d) throw ds3d::InvalidArgument("ds3d-eval: " + flag + " expects a number (got '" + v + "')");
+  if (!d) throw ds3d::InvalidArgument(flag + " expects a number (got '" + v + "')");
   return *d;
 }
 
@@ -48,8 +48,8 @@ double to_double(const std::string& flag, const std::string& v) {
 std::uint64_t to_count(const std::string& flag, const std::string& v, double max) {
   const double d = to_double(flag, v);
   if (!(d >= 0 && d <= max && d == std::floor(d))) {
-    throw ds3d::InvalidArgument("ds3d-eval: " + flag + " must be an integer in [0, " +
-                                json_number(max) + "] (got '" + v + "')");
+    throw ds3d::InvalidArgument(flag + " must be an integer in [0, " + json_number(max) +
+                                "] (got '" + v + "')");
   }
   return static_cast<std::uint64_t>(d);
 }
@@ -113,11 +113,8 @@ auto with_files(const std::string& gt_path, const std::string& est_path, const F
   }
 }
 
-/// One "ds3d-eval: error: " prefix, also for messages that already start with "ds3d-eval: ".
-std::string error_line(const std::string& what) {
-  const std::string own = "ds3d-eval: ";
-  return "ds3d-eval: error: " + (what.rfind(own, 0) == 0 ? what.substr(own.size()) : what);
-}
+/// The one line of an error; the tool's name is added here only, never in the messages.
+std::string error_line(const std::string& what) { return "ds3d-eval: error: " + what; }
 
 }  // namespace
 
@@ -135,7 +132,7 @@ int main(int argc, char** argv) {
     for (int i = 4; i < argc; ++i) {
       const std::string a = argv[i];
       const auto value = [&]() -> std::string {
-        if (i + 1 >= argc) throw ds3d::InvalidArgument("ds3d-eval: " + a + " needs a value");
+        if (i + 1 >= argc) throw ds3d::InvalidArgument(a + " needs a value");
         return argv[++i];
       };
       if (a == "--json") {
