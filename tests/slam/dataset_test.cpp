@@ -168,7 +168,7 @@ TEST(CameraFile, RejectsImplausibleIntrinsics) {
   for (const auto& [line, key, value] :
        {std::tuple{"fx 1e-300\ncx 319.5\n", "fx", "1e-300"},
         std::tuple{"fx 2e5\ncx 319.5\n", "fx", "200000"},
-        std::tuple{"fx 525\ncx 1e300\n", "cx", "1e+300"},
+        std::tuple{"fx 525\ncx 1.5e308\n", "cx", "1.5e+308"},
         std::tuple{"fx 525\ncx -700\n", "cx", "-700"},
         std::tuple{"fx 525\ncx 319.5\ndepth_scale 1e-300\n", "depth_scale", "1e-300"}}) {
     const std::string msg = message_of(std::string(line) + ok);

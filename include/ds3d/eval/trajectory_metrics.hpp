@@ -435,9 +435,9 @@ struct AteWindowResult {
   for (const auto& [what, value] : checked) {
     if (std::isfinite(value)) continue;
     detail::throw_non_finite_errors("ds3d::evaluate_ate", what, value, pg, pe,
-                                    [&](Eigen::Index k, bool est) {
+                                    [&](Eigen::Index k, bool of_estimate) {
                                       const auto& m = res.matches[static_cast<std::size_t>(k)];
-                                      return est ? m.t_est : m.t_gt;
+                                      return of_estimate ? m.t_est : m.t_gt;
                                     });
   }
   return res;
@@ -701,9 +701,13 @@ namespace detail {
     for (std::size_t i = 0; i < e.size(); ++i) {
       pe.col(static_cast<Eigen::Index>(i)) = me[i].topRightCorner<3, 1>() * options.scale;
     }
-    detail::throw_non_finite_errors(
-        "ds3d::evaluate_rpe", "the translational rmse", res.translational.rmse, pg, pe,
-        [&](Eigen::Index i, bool est) { return (est ? se : sg)[static_cast<std::size_t>(i)]; });
+    const bool bad_trans = !detail::all_finite(res.translational);
+    detail::throw_non_finite_errors("ds3d::evaluate_rpe",
+                                    bad_trans ? "translational rmse" : "rotational rmse",
+                                    bad_trans ? res.translational.rmse : res.rotational_rad.rmse,
+                                    pg, pe, [&](Eigen::Index i, bool of_estimate) {
+                                      return (of_estimate ? se : sg)[static_cast<std::size_t>(i)];
+                                    });
   }
   return res;
 }
