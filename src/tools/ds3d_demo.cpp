@@ -26,8 +26,8 @@ int main(int argc, char** argv) {
       const std::string v = argv[++i];
       const auto r = std::from_chars(v.data(), v.data() + v.size(), ctx.seed);
       if (v.empty() || r.ec != std::errc() || r.ptr != v.data() + v.size()) {
-        std::cerr << "ds3d-demo: --seed expects an integer in [0, 18446744073709551615] (got '"
-                  << v << "')\n";
+        std::cerr << "ds3d-demo: --seed expects an integer in [0, 18446744073709551615] (got '" << v
+                  << "')\n";
         return 2;
       }
     } else if (a == "--quick") {

@@ -234,7 +234,8 @@ TEST(Ds3dEvalCli, HugePositionsAndBadIntegersFailClearly) {
   ds3d::write_tum_trajectory(dir / "est.txt", est);
   const std::string files =
       " '" + (dir / "gt.txt").string() + "' '" + (dir / "est.txt").string() + "'";
-  for (const std::string extra : {"", " --json", " --plot '" + (dir / "p.png").string() + "'"}) {
+  const std::string plot = " --plot '" + (dir / "p.png").string() + "'";
+  for (const std::string& extra : {std::string(), std::string(" --json"), plot}) {
     const auto r = ds3d::test::run_tool("ds3d-eval", "ate" + files + extra);
     EXPECT_EQ(r.code, 2) << extra << ": " << r.output;
     EXPECT_NE(r.output.find("1.25e+197"), std::string::npos) << r.output;
