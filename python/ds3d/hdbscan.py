@@ -43,10 +43,25 @@ class HdbscanResult:
     min_samples_effective: int
 
 
+_INT32_MAX = 2**31 - 1
+
+
+def _int32(name, value):
+    """``value`` as a Python int that fits the C++ ``int`` field, else ValueError naming it."""
+    try:
+        v = int(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"ds3d.hdbscan: {name} must be an integer (got {value!r})") from None
+    if not -_INT32_MAX - 1 <= v <= _INT32_MAX:
+        raise ValueError(f"ds3d.hdbscan: {name} must fit a 32-bit int, at most {_INT32_MAX} "
+                         f"(got {value!r})")
+    return v
+
+
 def _params(min_cluster_size, min_samples, cluster_selection_method, allow_single_cluster,
             cluster_selection_epsilon, max_cluster_size, algorithm, num_threads):
     p = _ds3d.HdbscanParams()
-    if min_samples is not None and int(min_samples) < 1:
+    if min_samples is not None and _int32("min_samples", min_samples) < 1:
         raise ValueError(f"ds3d.hdbscan: min_samples must be None or >= 1 (got {min_samples})")
     methods = {"eom": _ds3d.ClusterSelection.eom, "leaf": _ds3d.ClusterSelection.leaf}
     if cluster_selection_method not in methods:
@@ -57,14 +72,14 @@ def _params(min_cluster_size, min_samples, cluster_selection_method, allow_singl
     if algorithm not in algorithms:
         raise ValueError("ds3d.hdbscan: algorithm must be 'auto', 'prims' or 'boruvka' "
                          f"(got {algorithm!r})")
-    p.min_cluster_size = int(min_cluster_size)
-    p.min_samples = 0 if min_samples is None else int(min_samples)
+    p.min_cluster_size = _int32("min_cluster_size", min_cluster_size)
+    p.min_samples = 0 if min_samples is None else _int32("min_samples", min_samples)
     p.cluster_selection_method = methods[cluster_selection_method]
     p.allow_single_cluster = bool(allow_single_cluster)
     p.cluster_selection_epsilon = float(cluster_selection_epsilon)
-    p.max_cluster_size = int(max_cluster_size)
+    p.max_cluster_size = _int32("max_cluster_size", max_cluster_size)
     p.algorithm = algorithms[algorithm]
-    p.num_threads = int(num_threads)
+    p.num_threads = _int32("num_threads", num_threads)
     return p
 
 

@@ -76,6 +76,11 @@ def test_precomputed():
     ({"cluster_selection_method": "nope"}, "cluster_selection_method"),
     ({"algorithm": "dense"}, "algorithm"),
     ({"cluster_selection_epsilon": -1.0}, "cluster_selection_epsilon"),
+    ({"min_cluster_size": 2**40}, r"ds3d.hdbscan: min_cluster_size .*1099511627776"),
+    ({"min_samples": 2**40}, r"min_samples .*1099511627776"),
+    ({"max_cluster_size": -2**40}, "max_cluster_size"),
+    ({"num_threads": 2**63}, "num_threads"),
+    ({"min_cluster_size": "five"}, "min_cluster_size must be an integer"),
 ])
 def test_bad_params_raise_value_error(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -86,4 +91,27 @@ def test_non_finite_row_is_named():
     x = np.zeros((20, 3))
     x[7, 2] = np.nan
     with pytest.raises(ValueError, match="row 7"):
+        ds3d.hdbscan(x)
+
+
+@pytest.mark.parametrize("factor", [1e200, 1e154, 1e-300])
+def test_extreme_coordinate_scales_cluster_like_unit_scale(factor):
+    # Squared distances of these coordinates overflow or underflow in float64.
+    rng = np.random.default_rng(4)
+    x = np.vstack([rng.normal(c, 0.2, size=(100, 3)) for c in (0.0, 4.0, 8.0)])
+    base = ds3d.hdbscan(x, min_cluster_size=10)
+    for algorithm in ("prims", "boruvka", "auto"):
+        r = ds3d.hdbscan(x * factor, min_cluster_size=10, algorithm=algorithm)
+        # The same partition; ids may be permuted (scaling by 1e200 is not exact, so the
+        # merge order of the single-linkage tree, which numbers the clusters, can change).
+        assert r.num_clusters == base.num_clusters == 3
+        pairs = set(zip(r.labels.tolist(), base.labels.tolist()))
+        assert len(pairs) == len({a for a, _ in pairs}) == len({b for _, b in pairs})
+        assert np.all(np.isfinite(r.core_distances)) and np.all(r.core_distances > 0)
+
+
+def test_unrepresentable_extent_raises_value_error():
+    x = np.zeros((20, 3))
+    x[3, 0], x[4, 0] = 1.5e308, -1.5e308
+    with pytest.raises(ValueError, match="row 3 column 0.*supported range"):
         ds3d.hdbscan(x)

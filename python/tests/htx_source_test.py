@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
 """ds3d.run_slam(dynamic='htx') and the detector-input helpers (include/ds3d/dynamic_sources.hpp)."""
+import os
 import pathlib
 
 import numpy as np
@@ -73,3 +74,22 @@ def test_upright_rotation_matches_the_trainers_convention():
         R_cpp = ds3d.upright_rotation(up)
         R_py = data.gravity_rotation(None, up)
         assert np.allclose(R_cpp, R_py, atol=1e-6), (up, R_cpp, R_py)
+
+
+def test_sparse_detector_refuses_devices_fifos_and_bad_shapes(tmp_path):
+    # A device or FIFO would be read without end; the reader refuses it by file type at once.
+    with pytest.raises(RuntimeError, match="/dev/urandom: not a regular file"):
+        ds3d.SparseDetector.load("/dev/urandom")
+    fifo = tmp_path / "weights.fifo"
+    os.mkfifo(fifo)
+    with pytest.raises(RuntimeError, match="weights.fifo: not a regular file"):
+        ds3d.SparseDetector.load(str(fifo))
+    det = ds3d.SparseDetector.load(str(FIXTURE))
+    bad = np.zeros((10, 4), np.float32)
+    with pytest.raises(ValueError, match=r"ds3d.SparseDetector.detect: points .*\(10, 4\)"):
+        det.detect(bad)
+    with pytest.raises(ValueError, match=r"ds3d.SparseDetector.run: points .*\(10, 4\)"):
+        det.run(bad)
+    # float64 and non-contiguous float32 inputs are converted, as before.
+    pts = np.random.default_rng(0).uniform(-1, 1, (64, 3))
+    assert np.array_equal(det.detect(pts), det.detect(np.asfortranarray(pts.astype(np.float32))))

@@ -67,12 +67,26 @@ std::int64_t TensorView::numel() const {
 }
 
 WeightsFile WeightsFile::read(const std::filesystem::path& path) {
+  const std::string src = path.string();
+  std::error_code ec;
+  const auto st = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(st)) fail(src, "cannot open file");
+  // A device or pipe (/dev/urandom, a FIFO) would be read without end.
+  if (!std::filesystem::is_regular_file(st)) fail(src, "not a regular file");
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
   std::ifstream in(path, std::ios::binary);
-  if (!in) fail(path.string(), "cannot open file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) fail(path.string(), "read error");
-  return parse(std::move(ss).str(), path.string());
+  if (ec || !in) fail(src, "cannot open file");
+  // The header length first, so that a corrupt one is refused before the file is loaded.
+  std::uint64_t n = 0;
+  if (size >= 8 && in.read(reinterpret_cast<char*>(&n), 8) && n > kMaxHeader) {
+    fail(src, detail::concat("header length ", n, " exceeds the 100 MB limit"));
+  }
+  in.clear();
+  in.seekg(0);
+  std::string bytes(static_cast<std::size_t>(size), '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(size));
+  if (in.bad() || static_cast<std::uintmax_t>(in.gcount()) != size) fail(src, "read error");
+  return parse(std::move(bytes), src);
 }
 
 WeightsFile WeightsFile::parse(std::string bytes, std::string source) {

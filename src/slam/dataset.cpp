@@ -61,6 +61,30 @@ PinholeCamera camera_preset(std::string_view name) {
                                        "' (valid: tum1, tum2, tum3, tum_ros, bonn)"));
 }
 
+namespace {
+
+/// Ranges a real RGB-D camera stays in; values outside them (a focal length of 1e-300 px, a
+/// principal point at 1e300 px) lose every frame instead of failing, so the reader refuses them.
+constexpr double kMinFocal = 1.0;        // [px]
+constexpr double kMaxFocal = 1e5;        // [px]
+constexpr double kMinDepthScale = 1e-6;  // [depth units per metre]
+constexpr double kMaxDepthScale = 1e9;   // [depth units per metre]
+
+void check_plausible(const PinholeCamera& c, std::string_view source) {
+  const auto in = [&](const char* key, double v, double lo, double hi, const char* unit) {
+    DS3D_CHECK_AS(IoError, v >= lo && v <= hi, "ds3d::read_camera_file: ", source, ": ", key,
+                  " must be in [", lo, ", ", hi, "] ", unit, " (got ", v, ")");
+  };
+  in("fx", c.fx, kMinFocal, kMaxFocal, "px");
+  in("fy", c.fy, kMinFocal, kMaxFocal, "px");
+  // The principal point may lie off a cropped image, but not more than one image size off.
+  in("cx", c.cx, -c.width, 2.0 * c.width, "px (-width to 2 width)");
+  in("cy", c.cy, -c.height, 2.0 * c.height, "px (-height to 2 height)");
+  in("depth_scale", c.depth_scale, kMinDepthScale, kMaxDepthScale, "units per metre");
+}
+
+}  // namespace
+
 PinholeCamera parse_camera_text(std::string_view text, std::string_view source) {
   constexpr const char* kFn = "ds3d::read_camera_file";
   PinholeCamera c;
@@ -112,6 +136,7 @@ PinholeCamera parse_camera_text(std::string_view text, std::string_view source) 
   } catch (const InvalidArgument& e) {
     throw IoError(detail::concat(e.what(), " in ", source));
   }
+  check_plausible(c, source);
   return c;
 }
 

@@ -21,7 +21,7 @@ namespace {
 
 // Perceptually ordered blue -> green -> yellow -> red ramp for v in [0, 1] (BGR).
 cv::Scalar ramp(double v) {
-  v = std::clamp(v, 0.0, 1.0);
+  v = std::isnan(v) ? 1.0 : std::clamp(v, 0.0, 1.0);  // NaN would index the stops at INT_MIN
   static const double kStops[5][3] = {{0.19, 0.07, 0.23},
                                       {0.13, 0.47, 0.85},
                                       {0.25, 0.80, 0.35},
@@ -32,6 +32,12 @@ cv::Scalar ramp(double v) {
   const double f = x - i;
   const auto c = [&](int k) { return 255 * ((1 - f) * kStops[i][k] + f * kStops[i + 1][k]); };
   return {c(2), c(1), c(0)};
+}
+
+// Pixel coordinate of a double, clamped far outside any image (OpenCV clips the lines) so that
+// huge or non-finite values cannot overflow the int conversion.
+int to_px(double v) {
+  return std::isnan(v) ? 0 : static_cast<int>(std::lround(std::clamp(v, -1e6, 1e6)));
 }
 
 std::string fmt(const char* f, double v) {
@@ -95,6 +101,9 @@ void AtePlotOptions::validate() const {
 cv::Mat render_ate_plot(const Trajectory& gt, const AteResult& r, const AtePlotOptions& o) {
   o.validate();
   DS3D_CHECK(!r.matches.empty(), "ds3d::render_ate_plot: the ATE result has no matches");
+  DS3D_CHECK(std::isfinite(r.rmse) && std::isfinite(r.max) && std::isfinite(r.worst_window_rmse),
+             "ds3d::render_ate_plot: result: the ATE statistics are not finite (rmse ", r.rmse,
+             ", max ", r.max, ", worst window rmse ", r.worst_window_rmse, ")");
   cv::Mat img(o.height, o.width, CV_8UC3, cv::Scalar(255, 255, 255));
   const int header = 58;
   text(img, o.title.empty() ? std::string("ATE") : o.title, {14, 22}, 0.6);
@@ -135,18 +144,20 @@ cv::Mat render_ate_plot(const Trajectory& gt, const AteResult& r, const AtePlotO
   const int panel_w = std::min(o.height - header - 20, o.width / 2 - 20);
   const cv::Rect view(20, header + 10, panel_w, o.height - header - 30);
   const double span = std::max({hi.x() - lo.x(), hi.y() - lo.y(), 1e-6});
+  DS3D_CHECK(std::isfinite(span), "ds3d::render_ate_plot: the positions' extent is not finite (",
+             span, " m)");
   const double scale = 0.9 * std::min(view.width, view.height) / span;
   const Eigen::Vector2d mid = 0.5 * (lo + hi);
   const auto px = [&](const Eigen::Vector3d& p) {
     const Eigen::Vector2d q = to2(p) - mid;
-    return cv::Point(static_cast<int>(std::lround(view.x + view.width / 2.0 + scale * q.x())),
-                     static_cast<int>(std::lround(view.y + view.height / 2.0 - scale * q.y())));
+    return cv::Point(to_px(view.x + view.width / 2.0 + scale * q.x()),
+                     to_px(view.y + view.height / 2.0 - scale * q.y()));
   };
   cv::rectangle(img, view, {200, 200, 200});
   text(img, "top view (principal plane of ground truth)", {view.x + 6, view.y + 18}, 0.45);
   // scale bar
   const double bar = tick_step(span, 4);
-  const int bar_px = static_cast<int>(bar * scale);
+  const int bar_px = to_px(bar * scale);
   const cv::Point b0(view.x + 10, view.y + view.height - 14);
   cv::line(img, b0, b0 + cv::Point(bar_px, 0), {40, 40, 40}, 2);
   text(img, fmt("%g m", bar), b0 + cv::Point(bar_px + 6, 5), 0.45);
@@ -183,17 +194,22 @@ cv::Mat render_ate_plot(const Trajectory& gt, const AteResult& r, const AtePlotO
   // A window RMSE stays below the largest error (its own alignment is optimal for it); max() only
   // guards rounding.
   const double ytop = std::max(emax, r.worst_window_rmse) * 1.08;
+  DS3D_CHECK(std::isfinite(ytop) && std::isfinite(t1 - t0),
+             "ds3d::render_ate_plot: result: the error range ", ytop, " or the time span ", t1 - t0,
+             " s is not finite");
   const auto pt = [&](double t, double e) {
-    return cv::Point(static_cast<int>(std::lround(plot.x + (t - t0) / (t1 - t0) * plot.width)),
-                     static_cast<int>(std::lround(plot.y + plot.height - e / ytop * plot.height)));
+    return cv::Point(to_px(plot.x + (t - t0) / (t1 - t0) * plot.width),
+                     to_px(plot.y + plot.height - e / ytop * plot.height));
   };
   const double ys = tick_step(ytop, 5);
-  for (double y = 0; y <= ytop + 1e-12; y += ys) {
+  int ticks = 0;  // bounded even if rounding stalls the sum
+  for (double y = 0; y <= ytop + 1e-12 && ticks < 100; y += ys, ++ticks) {
     cv::line(img, pt(t0, y), pt(t1, y), {235, 235, 235}, 1);
     text(img, fmt("%.3g", y), pt(t0, y) + cv::Point(-58, 5), 0.42);
   }
   const double xs = tick_step(t1 - t0, 6);
-  for (double x = 0; x <= t1 - t0 + 1e-9; x += xs) {
+  ticks = 0;
+  for (double x = 0; x <= t1 - t0 + 1e-9 && ticks < 100; x += xs, ++ticks) {
     cv::line(img, pt(t0 + x, 0), pt(t0 + x, 0) + cv::Point(0, 5), {40, 40, 40}, 1);
     text(img, fmt("%g", x), pt(t0 + x, 0) + cv::Point(-8, 22), 0.42);
   }

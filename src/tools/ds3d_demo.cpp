@@ -3,6 +3,7 @@
 // ds3d-demo: runs every registered demo step on embedded, generated data (nothing downloaded,
 // nothing read from ../shared). Usage: ds3d-demo [--out DIR] [--seed N] [--quick] [--list]
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cstdlib>
 #include <exception>
@@ -21,7 +22,14 @@ int main(int argc, char** argv) {
     if (a == "--out" && i + 1 < argc) {
       ctx.out_dir = argv[++i];
     } else if (a == "--seed" && i + 1 < argc) {
-      ctx.seed = std::strtoull(argv[++i], nullptr, 10);
+      // strtoull would take "-1" as 2^64 - 1 and "x" as 0; only a plain decimal is a seed.
+      const std::string v = argv[++i];
+      const auto r = std::from_chars(v.data(), v.data() + v.size(), ctx.seed);
+      if (v.empty() || r.ec != std::errc() || r.ptr != v.data() + v.size()) {
+        std::cerr << "ds3d-demo: --seed expects an integer in [0, 18446744073709551615] (got '" << v
+                  << "')\n";
+        return 2;
+      }
     } else if (a == "--quick") {
       ctx.quick = true;
     } else if (a == "--list") {

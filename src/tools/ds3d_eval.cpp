@@ -8,6 +8,8 @@
 //   ds3d-eval rpe GT EST [--delta 1] [--delta-unit s|f|m|rad|deg] [--offset 0] [--scale 1]
 //                        [--all-pairs] [--max-pairs 10000] [--evo] [--seed 1] [--json]
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <iostream>
@@ -38,8 +40,18 @@ int usage(const std::string& msg) {
 
 double to_double(const std::string& flag, const std::string& v) {
   const auto d = ds3d::detail::parse_py_float(v);
-  if (!d) throw ds3d::InvalidArgument("ds3d-eval: " + flag + " expects a number (got '" + v + "')");
+  if (!d) throw ds3d::InvalidArgument(flag + " expects a number (got '" + v + "')");
   return *d;
+}
+
+/// A non-negative integer option up to `max` (exactly representable), else InvalidArgument.
+std::uint64_t to_count(const std::string& flag, const std::string& v, double max) {
+  const double d = to_double(flag, v);
+  if (!(d >= 0 && d <= max && d == std::floor(d))) {
+    throw ds3d::InvalidArgument(flag + " must be an integer in [0, " + json_number(max) +
+                                "] (got '" + v + "')");
+  }
+  return static_cast<std::uint64_t>(d);
 }
 
 std::string stats_json(const ds3d::ErrorStats& s, const char* unit) {
@@ -90,6 +102,20 @@ void print_windows(const ds3d::AteResult& r, double window) {
   }
 }
 
+/// Runs `evaluate` and appends both file names to an InvalidArgument (bad data in one of them).
+template <class F>
+auto with_files(const std::string& gt_path, const std::string& est_path, const F& evaluate) {
+  try {
+    return evaluate();
+  } catch (const ds3d::InvalidArgument& e) {
+    throw ds3d::InvalidArgument(std::string(e.what()) + " (ground truth '" + gt_path +
+                                "', estimate '" + est_path + "')");
+  }
+}
+
+/// The one line of an error; the tool's name is added here only, never in the messages.
+std::string error_line(const std::string& what) { return "ds3d-eval: error: " + what; }
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -106,7 +132,7 @@ int main(int argc, char** argv) {
     for (int i = 4; i < argc; ++i) {
       const std::string a = argv[i];
       const auto value = [&]() -> std::string {
-        if (i + 1 >= argc) throw ds3d::InvalidArgument("ds3d-eval: " + a + " needs a value");
+        if (i + 1 >= argc) throw ds3d::InvalidArgument(a + " needs a value");
         return argv[++i];
       };
       if (a == "--json") {
@@ -130,15 +156,11 @@ int main(int argc, char** argv) {
       } else if (cmd == "rpe" && a == "--all-pairs") {
         rpe.fixed_delta = false;
       } else if (cmd == "rpe" && a == "--max-pairs") {
-        const double m = to_double(a, value());
-        if (!(m >= 0 && m < 1e12 && m == static_cast<double>(static_cast<long long>(m)))) {
-          throw ds3d::InvalidArgument("ds3d-eval: --max-pairs must be a non-negative integer");
-        }
-        rpe.max_pairs = static_cast<std::size_t>(m);
+        rpe.max_pairs = static_cast<std::size_t>(to_count(a, value(), 1e12));
       } else if (cmd == "rpe" && a == "--evo") {
         rpe.convention = ds3d::RpeConvention::kEvo;
       } else if (cmd == "rpe" && a == "--seed") {
-        rpe.seed = static_cast<std::uint64_t>(to_double(a, value()));
+        rpe.seed = to_count(a, value(), 0x1p53);
       } else {
         return usage("unknown option '" + a + "' for " + cmd);
       }
@@ -147,7 +169,8 @@ int main(int argc, char** argv) {
       // evaluate_ate.py reads positions only: a 0 0 0 0 quaternion does not drop a line.
       const auto gt = ds3d::read_tum_file(gt_path, {.keep_zero_quaternion = true}).trajectory;
       const auto est = ds3d::read_tum_file(est_path, {.keep_zero_quaternion = true}).trajectory;
-      const auto r = ds3d::evaluate_ate(gt, est, ate);
+      const auto r =
+          with_files(gt_path, est_path, [&] { return ds3d::evaluate_ate(gt, est, ate); });
       if (!plot.empty()) {
         ds3d::write_ate_plot(plot, gt, r, {.title = "ATE  " + est_path + "  vs  " + gt_path});
       }
@@ -180,7 +203,8 @@ int main(int argc, char** argv) {
     } else {
       const auto gt = ds3d::read_tum_trajectory(gt_path);
       const auto est = ds3d::read_tum_trajectory(est_path);
-      const auto r = ds3d::evaluate_rpe(gt, est, rpe);
+      const auto r =
+          with_files(gt_path, est_path, [&] { return ds3d::evaluate_rpe(gt, est, rpe); });
       if (json) {
         std::cout << "{\"compared_pose_pairs\":" << r.compared_pose_pairs
                   << ",\"translational\":" << stats_json(r.translational, "m")
@@ -196,10 +220,10 @@ int main(int argc, char** argv) {
     }
     return 0;
   } catch (const ds3d::InvalidArgument& e) {
-    std::cerr << "ds3d-eval: error: " << e.what() << "\n";
+    std::cerr << error_line(e.what()) << "\n";
     return 2;
   } catch (const std::exception& e) {
-    std::cerr << "ds3d-eval: error: " << e.what() << "\n";
+    std::cerr << error_line(e.what()) << "\n";
     return 1;
   }
 }

@@ -400,6 +400,56 @@ TEST(Hdbscan, OneAndTenDimensionsAgreeAcrossAlgorithms) {
   }
 }
 
+// Squared distances of |x| ~ 1e200 overflow and those of |x| ~ 1e-300 underflow; hdbscan
+// rescales by a power of two internally, so a power-of-two factor reproduces the unit-scale
+// result bit for bit (distances scaled, lambdas inverse-scaled) for every MST algorithm.
+TEST(Hdbscan, ExtremeCoordinateScalesGiveTheUnitScaleResult) {
+  const RowMatrixXd x = small_blobs(300, 3, 5);
+  for (const auto alg : {MstAlgorithm::kAuto, MstAlgorithm::kPrims, MstAlgorithm::kBoruvka}) {
+    HdbscanParams p;
+    p.algorithm = alg;
+    const auto base = ds3d::hdbscan(x, p);
+    ASSERT_GE(base.num_clusters, 2);
+    for (const int e : {700, 512, -1000}) {
+      const auto r = ds3d::hdbscan(RowMatrixXd(x * std::ldexp(1.0, e)), p);
+      ASSERT_EQ(r.labels, base.labels) << "2^" << e;
+      EXPECT_EQ(r.probabilities, base.probabilities) << "2^" << e;
+      ASSERT_EQ(r.core_distances.size(), base.core_distances.size());
+      for (std::size_t i = 0; i < r.core_distances.size(); ++i) {
+        ASSERT_EQ(r.core_distances[i], std::ldexp(base.core_distances[i], e)) << i;
+      }
+      ASSERT_EQ(r.condensed_tree.size(), base.condensed_tree.size());
+      for (std::size_t i = 0; i < r.condensed_tree.size(); ++i) {
+        ASSERT_EQ(r.condensed_tree[i].lambda_val,
+                  std::ldexp(base.condensed_tree[i].lambda_val, -e));
+      }
+    }
+    for (const double f : {1e200, 1e154, 1e-300}) {
+      const auto r = ds3d::hdbscan(RowMatrixXd(x * f), p);
+      EXPECT_EQ(r.labels, base.labels) << f;
+      for (const double c : r.core_distances) EXPECT_TRUE(std::isfinite(c) && c > 0.0) << f;
+    }
+  }
+}
+
+TEST(Hdbscan, UnrepresentableDiameterIsNamed) {
+  RowMatrixXd x = small_blobs(60, 3, 8);
+  x(7, 1) = 1.5e308;
+  x(9, 1) = -1.5e308;
+  try {
+    (void)ds3d::hdbscan(x);
+    FAIL() << "expected InvalidArgument";
+  } catch (const ds3d::InvalidArgument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("ds3d::hdbscan: points row 7 column 1"), std::string::npos) << what;
+    EXPECT_NE(what.find("supported range"), std::string::npos) << what;
+  }
+  // Finite coordinates times a finite scale that overflow are named as well.
+  RowMatrixXd y = small_blobs(60, 3, 8);
+  y(4, 2) = 1e300;
+  EXPECT_THROW((void)ds3d::hdbscan(y, {}, {1.0, 1.0, 1e10}), ds3d::InvalidArgument);
+}
+
 TEST(Hdbscan, ScaleEqualsPrescaledCoordinates) {
   RowMatrixXd x = small_blobs(300, 3, 11);
   const std::vector<double> scale{1.0, 1.0, 100.0};

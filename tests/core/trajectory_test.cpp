@@ -13,6 +13,7 @@
 #include <limits>
 #include <map>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "ds3d/eval/trajectory_metrics.hpp"
@@ -292,6 +293,28 @@ TEST(Ate, NonFinitePosesAreSkippedAndCounted) {
   EXPECT_EQ(r.compared_pose_pairs, 98U);
   EXPECT_TRUE(std::isfinite(r.rmse));
   for (const auto& m : r.matches) EXPECT_TRUE(m.p_est.allFinite());
+}
+
+// A finite position whose squares overflow (the trajectory fuzz target's self-ATE input
+// "1.0 1e197 0 0 0 0 0 1"): named, never a NaN or inf statistic.
+TEST(Ate, PositionsWhoseSquaresOverflowAreNamed) {
+  auto t = helix(50, 0.01);
+  t[5].T_world_cam.translation().x() = 1.25e197;
+  for (const auto& [gt, est, who] : {std::tuple{helix(50, 0.01), t, "estimate"},
+                                     std::tuple{t, helix(50, 0.01), "ground-truth"}}) {
+    try {
+      (void)ds3d::evaluate_ate(gt, est);
+      FAIL() << "expected InvalidArgument";
+    } catch (const ds3d::InvalidArgument& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(std::string(who) + " position coordinate 1.25e+197 at stamp"),
+                std::string::npos)
+          << what;
+    }
+    EXPECT_THROW(
+        (void)ds3d::evaluate_rpe(gt, est, {.delta = 1, .delta_unit = ds3d::DeltaUnit::kFrames}),
+        ds3d::InvalidArgument);
+  }
 }
 
 TEST(Ate, RejectsBadOptionsAndNoOverlap) {

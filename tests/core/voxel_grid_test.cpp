@@ -525,6 +525,28 @@ TEST(VoxelGrid, NonFiniteInput) {
                ds3d::InvalidArgument);
 }
 
+// float64 coordinates beyond the float32 range read as inf: named, not counted as non-finite.
+TEST(VoxelGrid, Float64BeyondFloat32RangeIsNamed) {
+  ds3d::Points3d p(4, 3);
+  p << 0.1, 0.2, 0.3, 1.0, 2.0, 3.0, 0.5, 1.25e39, 0.5, 0.0, 0.0, 0.0;
+  for (const auto policy : {ds3d::NonFinite::kSkip, ds3d::NonFinite::kThrow}) {
+    try {
+      (void)ds3d::voxel_grid(p, {.leaf_size = 0.1, .on_non_finite = policy});
+      FAIL() << "expected InvalidArgument";
+    } catch (const ds3d::InvalidArgument& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find("ds3d::voxel_grid: points: row 2 y = 1.25e+39"), std::string::npos) << msg;
+      EXPECT_NE(msg.find("float32 range"), std::string::npos) << msg;
+    }
+  }
+  // Through the Eigen::Ref overload, and with real non-finite points next to normal ones.
+  p(2, 1) = std::numeric_limits<double>::quiet_NaN();
+  const Eigen::Ref<const ds3d::Points3d> ref(p);
+  EXPECT_EQ(ds3d::voxel_grid(ref, {.leaf_size = 0.1}).num_non_finite, 1U);
+  p(3, 0) = -1e300;
+  EXPECT_THROW((void)ds3d::voxel_grid(ref, {.leaf_size = 0.1}), ds3d::InvalidArgument);
+}
+
 TEST(VoxelGrid, RejectsBadParams) {
   const Points3f p = Points3f::Zero(3, 3);
   EXPECT_THROW((void)ds3d::voxel_grid(p, {.leaf_size = -0.1}), ds3d::InvalidArgument);

@@ -70,6 +70,20 @@ TEST(WeightsIo, RejectsShortFileAndBadHeaderLength) {
   expect_io_error(over, "exceeds the file size");
 }
 
+// A device or FIFO never ends: refused by its file type before anything is read.
+TEST(WeightsIo, RefusesFilesThatAreNotRegular) {
+  for (const char* path : {"/dev/urandom", "/dev/zero", "/tmp"}) {
+    try {
+      (void)WeightsFile::read(path);
+      FAIL() << path;
+    } catch (const IoError& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string(path) + ": not a regular file"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(WeightsIo, RejectsBadJson) {
   expect_io_error(file_with_header("{\"a\":", 0), "invalid JSON");
   expect_io_error(file_with_header("[1]", 0), "not an object");

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include <opencv2/imgcodecs.hpp>
@@ -197,6 +198,32 @@ TEST(CameraFile, RejectsBadContent) {
   const auto c = ds3d::parse_camera_text("fx 1\nfy 2\ncx 3\ncy 4\nwidth 320\nheight 240\n");
   EXPECT_EQ(c.width, 320);
   EXPECT_EQ(c.height, 240);
+}
+
+TEST(CameraFile, RejectsImplausibleIntrinsics) {
+  const auto message_of = [](const std::string& text) -> std::string {
+    try {
+      (void)ds3d::parse_camera_text(text, "cam.txt");
+    } catch (const ds3d::IoError& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  const std::string ok = "fy 525\ncy 239.5\n";
+  for (const auto& [line, key, value] :
+       {std::tuple{"fx 1e-300\ncx 319.5\n", "fx", "1e-300"},
+        std::tuple{"fx 2e5\ncx 319.5\n", "fx", "200000"},
+        std::tuple{"fx 525\ncx 1.5e308\n", "cx", "1.5e+308"},
+        std::tuple{"fx 525\ncx -700\n", "cx", "-700"},
+        std::tuple{"fx 525\ncx 319.5\ndepth_scale 1e-300\n", "depth_scale", "1e-300"}}) {
+    const std::string msg = message_of(std::string(line) + ok);
+    EXPECT_NE(msg.find(std::string("ds3d::read_camera_file: cam.txt: ") + key + " must be in"),
+              std::string::npos)
+        << msg;
+    EXPECT_NE(msg.find(std::string("(got ") + value + ")"), std::string::npos) << msg;
+  }
+  // Small synthetic cameras and a principal point just off the image stay accepted.
+  EXPECT_EQ(message_of("fx 1\nfy 30\ncx -20\ncy 40\nwidth 32\nheight 24\n"), "accepted");
 }
 
 // Real recorded data (skipped when ../shared/data is absent).

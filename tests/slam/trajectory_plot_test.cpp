@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -18,6 +19,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ds3d/detail/json.hpp"
+#include "support/cli.hpp"
 #include "support/files.hpp"
 
 namespace {
@@ -75,6 +77,31 @@ TEST(AtePlot, DrawsTheWindows) {
   };
   EXPECT_EQ(count_magenta(ds3d::evaluate_ate(gt, est)), 0);
   EXPECT_GT(count_magenta(ds3d::evaluate_ate(gt, est, {.window = 1.0})), 300);
+}
+
+// One estimate position of 1e197 m is finite, but its squared error overflows: the metrics
+// name it instead of reporting rmse inf, and the plot never indexes its colour ramp with NaN.
+TEST(AtePlot, HugeFinitePositionsAreRejectedNotPlotted) {
+  auto [gt, est] = drift_pair();
+  est[300].T_world_cam.translation().x() = 1.25e197;
+  try {
+    (void)ds3d::evaluate_ate(gt, est);
+    FAIL() << "expected InvalidArgument";
+  } catch (const ds3d::InvalidArgument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("ds3d::evaluate_ate: rmse is not finite"), std::string::npos) << what;
+    EXPECT_NE(what.find("estimate position coordinate 1.25e+197"), std::string::npos) << what;
+  }
+  EXPECT_THROW((void)ds3d::evaluate_rpe(gt, est), ds3d::InvalidArgument);
+  // A result with non-finite statistics is refused; NaN or huge per-match values still draw.
+  ds3d::AteResult r = ds3d::evaluate_ate(gt, drift_pair().second);
+  r.matches[10].error = std::numeric_limits<double>::quiet_NaN();
+  r.matches[20].error = std::numeric_limits<double>::infinity();
+  r.matches[30].p_est = Eigen::Vector3d(1e300, -1e300, 0.0);
+  const cv::Mat img = ds3d::render_ate_plot(gt, r, {.width = 1000, .height = 500});
+  EXPECT_EQ(img.cols, 1000);
+  r.max = std::numeric_limits<double>::infinity();
+  EXPECT_THROW((void)ds3d::render_ate_plot(gt, r), ds3d::InvalidArgument);
 }
 
 // Same lines, names and units; numbers equal up to the %f rounding, plus the fixtures' 1e-5 deg
@@ -194,6 +221,36 @@ TEST(Ds3dEvalCli, WindowTextJsonAndPlot) {
 
   EXPECT_NE(run(exe.string() + " ate" + files + " --window -1 2>&1").find("window"),
             std::string::npos);
+  fs::remove_all(dir);
+}
+
+TEST(Ds3dEvalCli, HugePositionsAndBadIntegersFailClearly) {
+  if (!fs::exists(ds3d::test::tool_path("ds3d-eval"))) GTEST_SKIP() << "ds3d-eval not built";
+  const fs::path dir = fs::temp_directory_path() / ("ds3d_huge_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  auto [gt, est] = drift_pair();
+  est[300].T_world_cam.translation().x() = 1.25e197;
+  ds3d::write_tum_trajectory(dir / "gt.txt", gt);
+  ds3d::write_tum_trajectory(dir / "est.txt", est);
+  const std::string files =
+      " '" + (dir / "gt.txt").string() + "' '" + (dir / "est.txt").string() + "'";
+  const std::string plot = " --plot '" + (dir / "p.png").string() + "'";
+  for (const std::string& extra : {std::string(), std::string(" --json"), plot}) {
+    const auto r = ds3d::test::run_tool("ds3d-eval", "ate" + files + extra);
+    EXPECT_EQ(r.code, 2) << extra << ": " << r.output;
+    EXPECT_NE(r.output.find("1.25e+197"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("est.txt"), std::string::npos) << r.output;
+    EXPECT_EQ(r.output.find("rmse inf"), std::string::npos) << r.output;
+  }
+  EXPECT_FALSE(fs::exists(dir / "p.png"));
+  EXPECT_EQ(ds3d::test::run_tool("ds3d-eval", "rpe" + files).code, 2);
+  // Integer options out of range, and the tool name once per message.
+  for (const std::string opt : {"--max-pairs -1", "--seed 1e30", "--seed 2.5"}) {
+    const auto r = ds3d::test::run_tool("ds3d-eval", "rpe" + files + " " + opt);
+    EXPECT_EQ(r.code, 2) << opt;
+    EXPECT_EQ(r.output.rfind("ds3d-eval: error: --", 0), 0U) << r.output;
+    EXPECT_EQ(r.output.find("ds3d-eval:", 1), std::string::npos) << r.output;
+  }
   fs::remove_all(dir);
 }
 

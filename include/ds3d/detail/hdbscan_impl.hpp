@@ -473,6 +473,68 @@ inline void hdbscan_from_mst(HdbscanResult& res, std::vector<MstEdge> mst, const
   finish_result(res, p, n);
 }
 
+/// Power-of-two exponent e such that the coordinates divided by 2^e keep every squared distance
+/// finite and normal: 0 (no rescaling, so ordinary data run untouched) while the largest
+/// |coordinate| lies in [2^-200, 2^200], else the exponent that brings it into [1, 2). Scaling by
+/// 2^-e is exact and every step of the algorithm is scale invariant, so the result is the one
+/// exact arithmetic would give. Throws when the point set's diameter is not representable.
+inline int hdbscan_range_exponent(const std::vector<double>& data, std::size_t n, std::size_t dim) {
+  double big = 0.0;
+  std::size_t arg = 0;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    if (std::abs(data[i]) > big) {
+      big = std::abs(data[i]);
+      arg = i;
+    }
+  }
+  if (big == 0.0 || (big <= 0x1p200 && big >= 0x1p-200)) return 0;
+  const int e = std::ilogb(big);
+  double diam2 = 0.0;  // squared diameter of the bounding box, in units of 2^e
+  for (std::size_t j = 0; j < dim; ++j) {
+    double lo = std::numeric_limits<double>::infinity();
+    double hi = -lo;
+    for (std::size_t i = 0; i < n; ++i) {
+      lo = std::min(lo, std::ldexp(data[i * dim + j], -e));
+      hi = std::max(hi, std::ldexp(data[i * dim + j], -e));
+    }
+    diam2 += (hi - lo) * (hi - lo);
+  }
+  // Twice the diameter must stay finite so that rounded distances near it cannot overflow.
+  DS3D_CHECK(std::isfinite(std::ldexp(std::sqrt(diam2), e + 1)), "ds3d::hdbscan: points row ",
+             arg / dim, " column ", arg % dim, ": coordinate ", data[arg],
+             " beyond the supported range (the points' bounding-box diameter must stay below ",
+             std::numeric_limits<double>::max() / 2, ")");
+  return e;
+}
+
+/// Maps a result computed on coordinates divided by 2^e back to the caller's units: distances
+/// times 2^e, lambdas (1 / distance) times 2^-e; probabilities, scores and persistence are ratios.
+inline void hdbscan_unscale(HdbscanResult& res, int e) {
+  for (auto& c : res.core_distances) c = std::ldexp(c, e);
+  for (auto& m : res.min_spanning_tree) m.weight = std::ldexp(m.weight, e);
+  for (auto& s : res.single_linkage_tree) s.distance = std::ldexp(s.distance, e);
+  for (auto& r : res.condensed_tree) r.lambda_val = std::ldexp(r.lambda_val, -e);
+}
+
+/// cluster_selection_epsilon in units of 2^e; a positive epsilon stays positive.
+inline double hdbscan_scaled_epsilon(double eps, int e) {
+  if (eps == 0.0) return eps;
+  return std::max(std::ldexp(eps, -e), std::numeric_limits<double>::denorm_min());
+}
+
+/// The MST must have n - 1 finite edges between distinct points; anything else is a bug or an
+/// arithmetic overflow that would corrupt the tree steps, so it is reported instead.
+inline void hdbscan_check_mst(const std::vector<MstEdge>& mst, std::size_t n) {
+  DS3D_CHECK_AS(NumericalError, mst.size() + 1 == n, "ds3d::hdbscan: minimum spanning tree has ",
+                mst.size(), " edges for ", n, " points");
+  for (const auto& e : mst) {
+    DS3D_CHECK_AS(NumericalError,
+                  std::isfinite(e.weight) && e.from < n && e.to < n && e.from != e.to,
+                  "ds3d::hdbscan: invalid minimum spanning tree edge ", e.from, " - ", e.to,
+                  " (weight ", e.weight, ")");
+  }
+}
+
 inline HdbscanResult hdbscan_trivial(std::size_t n) {
   HdbscanResult res;
   res.labels.assign(n, -1);
@@ -506,9 +568,18 @@ inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const Hdbscan
       DS3D_CHECK(std::isfinite(v), "ds3d::hdbscan: points row ", i, " column ", j,
                  " is not finite (got ", v, ")");
       data[i * dim + j] = scale.empty() ? v : v * scale[j];
+      DS3D_CHECK(std::isfinite(data[i * dim + j]), "ds3d::hdbscan: points row ", i, " column ", j,
+                 " times scale[", j, "] overflows (got ", v, " * ", scale[j], ")");
     }
   }
   if (n < 2) return detail::hdbscan_trivial(n);
+  const int range_exp = detail::hdbscan_range_exponent(data, n, dim);
+  HdbscanParams p = params;
+  if (range_exp != 0) {
+    for (auto& v : data) v = std::ldexp(v, -range_exp);
+    p.cluster_selection_epsilon =
+        detail::hdbscan_scaled_epsilon(p.cluster_selection_epsilon, range_exp);
+  }
   HdbscanResult res;
   const int threads = detail::resolve_num_threads(params.num_threads, "ds3d::hdbscan");
   const int k = detail::hdbscan_effective_k(params, n);
@@ -532,7 +603,9 @@ inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const Hdbscan
                              : detail::knn_core_distances(ds, static_cast<std::size_t>(k), threads);
     mst = detail::prim_dense(data.data(), n, dim, res.core_distances);
   }
-  detail::hdbscan_from_mst(res, std::move(mst), params, n, !use_boruvka);
+  detail::hdbscan_check_mst(mst, n);
+  detail::hdbscan_from_mst(res, std::move(mst), p, n, !use_boruvka);
+  if (range_exp != 0) detail::hdbscan_unscale(res, range_exp);
   return res;
 }
 

@@ -128,6 +128,29 @@ struct VoxelBox {
   std::size_t non_finite = 0;        ///< non-finite points (ignored)
 };
 
+/// The shipped clouds that hold doubles and are read as float (cloud.hpp).
+template <class C>
+inline constexpr bool kReadsDoubleAsFloat =
+    std::is_same_v<C, Points3d> || std::is_same_v<C, Eigen::Ref<const Points3d>>;
+
+/// A finite double beyond the float range reads as ±inf and would vanish among the non-finite
+/// points without a word; this names the first one. Called only when non-finite points were seen.
+template <PointCloud C>
+void check_float_range(const C& c, const char* function) {
+  if constexpr (kReadsDoubleAsFloat<C>) {
+    const std::array<const char*, 3> axis{"x", "y", "z"};
+    for (Eigen::Index i = 0; i < c.rows(); ++i) {
+      for (Eigen::Index j = 0; j < 3; ++j) {
+        const double v = c(i, j);
+        DS3D_CHECK(!std::isfinite(v) || std::isfinite(static_cast<float>(v)), function,
+                   ": points: row ", i, " ", axis[static_cast<std::size_t>(j)], " = ", v,
+                   " is finite but beyond the float32 range (|v| <= ",
+                   std::numeric_limits<float>::max(), ") in which points are read");
+      }
+    }
+  }
+}
+
 /// One streaming pass over the cloud (parallel): the key box of its finite points. floor is
 /// monotonic, so the keys of the float extremes are the extreme keys. Throws like sort_by_voxel
 /// (a non-finite point under kThrow: the first one is named; a key of magnitude >= 2^62).
@@ -152,6 +175,7 @@ template <PointCloud C>
                     [&](std::size_t b, std::size_t e, std::size_t ch) { body(b, e, part[ch]); });
     for (const auto& p : part) fb.merge(p);
   }
+  if (fb.non_finite > 0) check_float_range(c, function);
   if (fb.non_finite > 0 && on_non_finite == NonFinite::kThrow) {
     const Eigen::Vector3f p = cloud::point(c, fb.first_non_finite);
     DS3D_CHECK(false, function, ": point ", fb.first_non_finite, " is not finite (", p.x(), ", ",

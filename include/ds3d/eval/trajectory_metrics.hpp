@@ -236,6 +236,39 @@ namespace detail {
   return out;
 }
 
+/// True when every statistic is finite.
+[[nodiscard]] inline bool all_finite(const ErrorStats& s) {
+  return std::isfinite(s.rmse) && std::isfinite(s.mean) && std::isfinite(s.median) &&
+         std::isfinite(s.std) && std::isfinite(s.min) && std::isfinite(s.max);
+}
+
+/// Largest |coordinate| of a column of `p` and that column (0 for an empty matrix).
+[[nodiscard]] inline std::pair<double, Eigen::Index> largest_coordinate(const Eigen::Matrix3Xd& p) {
+  std::pair<double, Eigen::Index> best{0.0, 0};
+  for (Eigen::Index k = 0; k < p.cols(); ++k) {
+    const double a = p.col(k).cwiseAbs().maxCoeff();
+    if (!(a <= best.first)) best = {a, k};
+  }
+  return best;
+}
+
+/// Squared errors of positions beyond ~1e154 m overflow, so statistics would come out as inf or
+/// NaN; this names the position responsible instead. `pg`, `pe`: associated positions, columns
+/// in match order; `stamp(k, estimate)`: the stamp of match k.
+template <class Stamp>
+[[noreturn]] void throw_non_finite_errors(const char* function, const char* what, double value,
+                                          const Eigen::Matrix3Xd& pg, const Eigen::Matrix3Xd& pe,
+                                          const Stamp& stamp) {
+  const auto [ag, kg] = largest_coordinate(pg);
+  const auto [ae, ke] = largest_coordinate(pe);
+  const bool est = !(ae <= ag);
+  throw InvalidArgument(concat(function, ": ", what, " is not finite (got ", value,
+                               "): ", est ? "estimate" : "ground-truth", " position coordinate ",
+                               est ? ae : ag, " at stamp ", stamp(est ? ke : kg, est),
+                               " is beyond the supported range (squared errors must stay "
+                               "finite, |coordinate| below about 1e150 m)"));
+}
+
 [[nodiscard]] inline std::vector<double> stamps_of(const Trajectory& t) {
   std::vector<double> s(t.size());
   for (std::size_t i = 0; i < t.size(); ++i) s[i] = t[i].timestamp;
@@ -390,6 +423,22 @@ struct AteWindowResult {
     res.windows = std::move(w.windows);
     res.worst_window_rmse = w.worst_window_rmse;
     res.num_short_windows = w.num_short_windows;
+  }
+  const std::pair<const char*, double> checked[] = {
+      {"rmse", res.rmse},
+      {"std", res.std},
+      {"max", res.max},
+      {"worst window rmse", res.worst_window_rmse},
+      {"alignment scale", res.scale_factor},
+      {"alignment translation norm", res.translation.norm()},
+      {"alignment rotation sum", res.rotation.sum()}};
+  for (const auto& [what, value] : checked) {
+    if (std::isfinite(value)) continue;
+    detail::throw_non_finite_errors("ds3d::evaluate_ate", what, value, pg, pe,
+                                    [&](Eigen::Index k, bool of_estimate) {
+                                      const auto& m = res.matches[static_cast<std::size_t>(k)];
+                                      return of_estimate ? m.t_est : m.t_gt;
+                                    });
   }
   return res;
 }
@@ -644,6 +693,22 @@ namespace detail {
   const double k = 180.0 / std::numbers::pi;
   const ErrorStats& r = res.rotational_rad;
   res.rotational = {r.rmse * k, r.mean * k, r.median * k, r.std * k, r.min * k, r.max * k};
+  if (!detail::all_finite(res.translational) || !detail::all_finite(res.rotational_rad)) {
+    Eigen::Matrix3Xd pg(3, static_cast<Eigen::Index>(g.size()));
+    Eigen::Matrix3Xd pe(3, static_cast<Eigen::Index>(e.size()));
+    for (std::size_t i = 0; i < g.size(); ++i)
+      pg.col(static_cast<Eigen::Index>(i)) = mg[i].topRightCorner<3, 1>();
+    for (std::size_t i = 0; i < e.size(); ++i) {
+      pe.col(static_cast<Eigen::Index>(i)) = me[i].topRightCorner<3, 1>() * options.scale;
+    }
+    const bool bad_trans = !detail::all_finite(res.translational);
+    detail::throw_non_finite_errors("ds3d::evaluate_rpe",
+                                    bad_trans ? "translational rmse" : "rotational rmse",
+                                    bad_trans ? res.translational.rmse : res.rotational_rad.rmse,
+                                    pg, pe, [&](Eigen::Index i, bool of_estimate) {
+                                      return (of_estimate ? se : sg)[static_cast<std::size_t>(i)];
+                                    });
+  }
   return res;
 }
 

@@ -39,7 +39,8 @@ struct TensorView {
 /// A parsed and validated weights file (owns its bytes).
 class WeightsFile {
  public:
-  /// Reads and validates a file. @throws ds3d::IoError naming the path and the defect.
+  /// Reads and validates a file. @throws ds3d::IoError naming the path and the defect (missing,
+  /// not a regular file such as a device or pipe, header length over 100 MB, bad layout).
   /// @note O(file size); the whole file is read into memory.
   [[nodiscard]] static WeightsFile read(const std::filesystem::path& path);
   /// Validates an in-memory image of a file; `source` names it in error messages.

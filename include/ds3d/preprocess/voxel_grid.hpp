@@ -93,8 +93,10 @@ inline constexpr std::size_t kVoxelGridCachedScratchBytes = std::size_t{64} << 2
 /// @param params leaf sizes [m], min_points, non-finite policy and threads.
 /// @return centroids, keys, counts and representative input indices, sorted by key.
 /// @throws ds3d::InvalidArgument on bad params, on a voxel index whose magnitude reaches 2^62
-///         (names the coordinate and the value), on a non-finite point under kThrow, or on
-///         clouds of 2^32 - 1 points or more.
+///         (names the coordinate and the value), on a non-finite point under kThrow, on a
+///         finite float64 coordinate (Points3d clouds) beyond the float32 range points are read
+///         in (|v| > 3.4e38; names the row, axis and value), or on clouds of 2^32 - 1 points or
+///         more.
 /// @note O(n) time, O(n) extra memory: an occupancy bitmap over the key box when it has at most
 ///       16 cells per point or 2^16 cells (no sort), else a radix sort on packed keys (a comparison
 ///       sort when the occupied key ranges need more than 64 bits). Identical output for every

@@ -51,7 +51,9 @@ struct RgbdFrame {
 /// @param text   the file's content
 /// @param source name used in error messages
 /// @throws ds3d::IoError naming source and line for an unknown or repeated key, a value that is
-///         not a number, a missing required key or an invalid camera.
+///         not a number, a missing required key or an invalid camera; naming source, key and
+///         value for an implausible one: fx, fy outside [1, 1e5] px, cx outside [-width,
+///         2 width], cy outside [-height, 2 height], depth_scale outside [1e-6, 1e9].
 [[nodiscard]] PinholeCamera parse_camera_text(std::string_view text,
                                               std::string_view source = "<text>");
 

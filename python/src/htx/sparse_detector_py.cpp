@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "ds3d/htx/sparse_detector.hpp"
+#include "numpy_util.hpp"
 
 namespace py = pybind11;
 
@@ -26,6 +27,18 @@ Rows to_rows(const std::vector<ds3d::Box3>& boxes) {
         b.score, static_cast<float>(b.label);
   }
   return r;
+}
+using PointsF32 = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+// The (n, 3) float32 points of `obj` (no copy for a C-contiguous float32 array); ValueError naming
+// `function`, the parameter and the shape/dtype for anything else (pybind11 says TypeError).
+PointsF32 points_f32(const char* function, const py::handle& obj) {
+  ds3d::py_util::check_points(function, obj);
+  return PointsF32::ensure(obj);
+}
+
+Eigen::Map<const ds3d::Points3f> view(const PointsF32& a) {
+  return {a.data(), static_cast<Eigen::Index>(a.shape(0)), 3};
 }
 }  // namespace
 
@@ -72,12 +85,12 @@ void bind_sparse_detector(py::module_& m) {
       .def_property_readonly("config", &ds3d::SparseDetector::config)
       .def(
           "detect",
-          [](const ds3d::SparseDetector& d, const Eigen::Ref<const ds3d::Points3f>& xyz,
-             int num_threads) {
+          [](const ds3d::SparseDetector& d, const py::object& points, int num_threads) {
+            const PointsF32 xyz = points_f32("ds3d.SparseDetector.detect", points);
             std::vector<ds3d::Box3> boxes;
             {
               py::gil_scoped_release release;
-              boxes = d.detect(xyz, num_threads);
+              boxes = d.detect(view(xyz), num_threads);
             }
             return to_rows(boxes);
           },
@@ -88,12 +101,13 @@ void bind_sparse_detector(py::module_& m) {
           "objectness).")
       .def(
           "run",
-          [](const ds3d::SparseDetector& d, const Eigen::Ref<const ds3d::Points3f>& xyz,
-             int num_threads, bool part_logits) {
+          [](const ds3d::SparseDetector& d, const py::object& points, int num_threads,
+             bool part_logits) {
+            const PointsF32 xyz = points_f32("ds3d.SparseDetector.run", points);
             ds3d::DetectorOutput o;
             {
               py::gil_scoped_release release;
-              o = d.run(xyz, {.num_threads = num_threads, .part_logits = part_logits});
+              o = d.run(view(xyz), {.num_threads = num_threads, .part_logits = part_logits});
             }
             Rows prop = to_rows(o.proposals);
             Eigen::VectorXf obj(static_cast<Eigen::Index>(o.proposals.size()));
