@@ -83,7 +83,7 @@ struct FrontendConfig {
   /// with its pose) and optimise the pose on them before falling back to relocalisation; a
   /// frame tracked so becomes a keyframe, so the map continues from it. Off: such frames are
   /// lost (and re-anchored after reanchor_after_lost frames).
-  bool odometry_fallback = true;
+  bool odometry_fallback = false;
   double keyframe_ref_ratio = 0.75;  ///< a keyframe is needed when the frame tracks fewer than
                                      ///< this fraction of the reference keyframe's well-observed
                                      ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
