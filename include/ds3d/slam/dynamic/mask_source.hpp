@@ -32,8 +32,9 @@ class MaskSource final : public DynamicObjectSource {
   /// @throws ds3d::IoError when the matched image cannot be read or its size is not the camera's
   DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
   [[nodiscard]] std::string name() const override { return "mask"; }
-  /// Frames that got a mask, and frames that did not.
+  /// Frames detect() found a mask for so far.
   [[nodiscard]] std::size_t num_matched() const noexcept { return matched_; }
+  /// Frames detect() found no mask for (within max_dt) so far.
   [[nodiscard]] std::size_t num_unmatched() const noexcept { return unmatched_; }
 
  private:
