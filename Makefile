@@ -123,7 +123,7 @@ fuzz-build: deps
 	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/tum_list_fuzz.cpp -o $(FUZZ_DIR)/tum_list_fuzz
 	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/camera_fuzz.cpp src/slam/dataset.cpp -o $(FUZZ_DIR)/camera_fuzz \
 	  -lopencv_core -lopencv_imgcodecs
-	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/weights_io_fuzz.cpp src/htx/weights_io.cpp src/htx/sparse_detector.cpp \
+	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/weights_io_fuzz.cpp src/htx/*.cpp \
 	  -o $(FUZZ_DIR)/weights_io_fuzz
 	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/weights_stream_fuzz.cpp src/htx/*.cpp -o $(FUZZ_DIR)/weights_stream_fuzz
 	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/hdbscan_fuzz.cpp -o $(FUZZ_DIR)/hdbscan_fuzz

@@ -41,8 +41,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   ds3d::Trajectory est;
   try {
     gt = ds3d::parse_tum_trajectory(all.substr(0, nul), {.keep_zero_quaternion = true}).trajectory;
-    est = ds3d::parse_tum_trajectory(all.substr(nul + 1), {.keep_zero_quaternion = true})
-              .trajectory;
+    est =
+        ds3d::parse_tum_trajectory(all.substr(nul + 1), {.keep_zero_quaternion = true}).trajectory;
   } catch (const ds3d::IoError&) {
     return 0;
   }
@@ -53,9 +53,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   } catch (const ds3d::InvalidArgument&) {
     return 0;
   }
-  static const std::filesystem::path out = std::filesystem::temp_directory_path() /
-                                           ("ds3d_ate_plot_fuzz_" + std::to_string(::getpid()) +
-                                            ".png");
+  static const std::filesystem::path out =
+      std::filesystem::temp_directory_path() /
+      ("ds3d_ate_plot_fuzz_" + std::to_string(::getpid()) + ".png");
   ds3d::write_ate_plot(out, gt, r, {.width = 400, .height = 300, .title = "fuzz"});
   if (!std::filesystem::exists(out)) std::abort();
   return 0;

@@ -23,8 +23,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   ds3d::HdbscanParams p;
   p.min_cluster_size = 2 + data[0] % 16;
   p.min_samples = data[1] % 16;
-  p.cluster_selection_method = (data[2] & 1) != 0 ? ds3d::ClusterSelection::kLeaf
-                                                  : ds3d::ClusterSelection::kEom;
+  p.cluster_selection_method =
+      (data[2] & 1) != 0 ? ds3d::ClusterSelection::kLeaf : ds3d::ClusterSelection::kEom;
   p.allow_single_cluster = (data[2] & 2) != 0;
   p.algorithm = static_cast<ds3d::MstAlgorithm>((data[2] >> 2) % 3);
   p.cluster_selection_epsilon = (data[2] & 16) != 0 ? 0.5 : 0.0;
