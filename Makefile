@@ -5,6 +5,7 @@
 #   make demo        Release build in build/ and run the demo on generated data
 #   make test        build + ctest + pytest + out-of-tree consumer against an installed copy
 #                    + offline pip install into a throw-away venv + examples + notebook + docs
+#                    + 10 s of each fuzz target (test-fuzz; skipped without clang)
 #   make docs        API reference (doxygen) -> build/docs/html; fails on any doxygen warning
 #   make test-examples  cluster_bench/sweep.py --quick (the C++ examples run in ctest and
 #                    test-consumer); make test-notebook: executes examples/notebooks headless
@@ -42,7 +43,7 @@ build: configure
 demo: build
 	$(BUILD_DIR)/bin/ds3d-demo --out $(BUILD_DIR)/demo_out
 
-test: build test-cpp test-python test-consumer test-pip test-examples test-notebook docs
+test: build test-cpp test-python test-consumer test-pip test-examples test-notebook docs test-fuzz
 	@echo "make test: all suites passed"
 
 test-cpp: build
@@ -106,28 +107,38 @@ bench-compare:
 	cmake --build $(COMPARE_DIR) -j $(JOBS)
 	OMP_NUM_THREADS=1 $(COMPARE_DIR)/bin/compare_open3d_pcl $(COMPARE_ARGS)
 
-# ---- fuzzing: libFuzzer targets tests/fuzz/*_fuzz.cpp, built with clang + ASan/UBSan
-# in build-fuzz/, each run for FUZZ_SECONDS (default 60) from a seed corpus of tests/data.
+# ---- fuzzing: libFuzzer targets tests/fuzz/*_fuzz.cpp, built by tests/fuzz/CMakeLists.txt with
+# clang + ASan/UBSan in build-fuzz/ (incremental), each run for FUZZ_SECONDS (default 60) from a
+# seed corpus of tests/data. test-fuzz (part of `make test`): FUZZ_SECONDS=10, skipped without
+# clang. A crash leaves its input in build-fuzz/crash-*: add it to the target's regression test.
 FUZZ_DIR     ?= build-fuzz
 FUZZ_SECONDS ?= 60
 FUZZ_CXX     ?= clang++
-FUZZ_FLAGS   ?= -std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
-                -Iinclude -isystem /usr/include/eigen3 -isystem /usr/include/opencv4
-.PHONY: fuzz
-fuzz: deps
-	@mkdir -p $(FUZZ_DIR)/corpus_traj $(FUZZ_DIR)/corpus_list $(FUZZ_DIR)/corpus_camera
-	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/tum_trajectory_fuzz.cpp -o $(FUZZ_DIR)/tum_trajectory_fuzz
-	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/tum_list_fuzz.cpp -o $(FUZZ_DIR)/tum_list_fuzz
-	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/camera_fuzz.cpp src/slam/dataset.cpp -o $(FUZZ_DIR)/camera_fuzz \
-	  -lopencv_core -lopencv_imgcodecs
+FUZZ_RUN      = -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 -artifact_prefix=$(FUZZ_DIR)/
+FUZZ_TARGETS  = tum_trajectory:8192:corpus_traj tum_list:4096:corpus_list camera:2048:corpus_camera \
+                weights_io:65536:corpus_weights weights_stream:65536:corpus_weights_stream \
+                hdbscan:6148:corpus_hdbscan ate_plot:8192:corpus_ate_plot
+.PHONY: fuzz fuzz-build test-fuzz
+fuzz-build: deps
+	cmake -S tests/fuzz -B $(FUZZ_DIR) -G $(GENERATOR) -DCMAKE_CXX_COMPILER=$(FUZZ_CXX)
+	cmake --build $(FUZZ_DIR) -j $(JOBS)
+	@mkdir -p $(FUZZ_DIR)/corpus_traj $(FUZZ_DIR)/corpus_list $(FUZZ_DIR)/corpus_camera $(FUZZ_DIR)/corpus_weights
 	@for d in tests/data/trajectory/*/; do head -c 4000 $$d/estimate.txt > $(FUZZ_DIR)/corpus_traj/$$(basename $$d); done
 	@printf '# rgb\n1305031102.175304 rgb/1.png\n1305031102.211214,rgb/2.jpg\r\n' > $(FUZZ_DIR)/corpus_list/seed
 	@cp tests/data/dataset/*.txt $(FUZZ_DIR)/corpus_camera/
-	$(FUZZ_DIR)/tum_trajectory_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=8192 $(FUZZ_DIR)/corpus_traj
-	$(FUZZ_DIR)/tum_list_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=4096 $(FUZZ_DIR)/corpus_list
-	$(FUZZ_DIR)/camera_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=2048 $(FUZZ_DIR)/corpus_camera
-	$(FUZZ_CXX) $(FUZZ_FLAGS) tests/fuzz/weights_io_fuzz.cpp src/htx/weights_io.cpp src/htx/sparse_detector.cpp \
-	  -o $(FUZZ_DIR)/weights_io_fuzz
-	@mkdir -p $(FUZZ_DIR)/corpus_weights && cp tests/data/htx/*.safetensors $(FUZZ_DIR)/corpus_weights/
-	$(FUZZ_DIR)/weights_io_fuzz -max_total_time=$(FUZZ_SECONDS) -max_len=65536 $(FUZZ_DIR)/corpus_weights
+	@cp tests/data/htx/*.safetensors $(FUZZ_DIR)/corpus_weights/
+	$(PYTHON) scripts/fuzz-seeds.py $(FUZZ_DIR)
+
+fuzz: fuzz-build
+	@set -e; for t in $(FUZZ_TARGETS); do \
+	  name=$${t%%:*}; rest=$${t#*:}; len=$${rest%%:*}; corpus=$${rest#*:}; \
+	  echo "fuzz: $$name ($(FUZZ_SECONDS) s)"; \
+	  $(FUZZ_DIR)/$${name}_fuzz $(FUZZ_RUN) -max_len=$$len $(FUZZ_DIR)/$$corpus 2>$(FUZZ_DIR)/$$name.log \
+	    || { tail -40 $(FUZZ_DIR)/$$name.log; exit 1; }; \
+	  grep -E "stat::number_of_executed_units" $(FUZZ_DIR)/$$name.log | sed "s/^/  /"; \
+	done
 	@echo "make fuzz: no crash in $(FUZZ_SECONDS) s per target"
+
+test-fuzz:
+	@if command -v $(FUZZ_CXX) >/dev/null 2>&1; then $(MAKE) --no-print-directory fuzz FUZZ_SECONDS=10; \
+	else echo "make test-fuzz: $(FUZZ_CXX) not found, fuzzing skipped (scripts/deps/eval.txt installs clang)"; fi

@@ -46,7 +46,7 @@ if [[ "$synth" == 1 ]]; then
   [[ -x "$build/bin/ds3d-synth" ]] || { echo "eval-dynamic: $build/bin/ds3d-synth not built" >&2; exit 1; }
   printf "\n| synthetic (240 frames, seed 1) | --dynamic | ATE RMSE [m] | pairs | tracked | fps median | detect median [ms] | filter median [ms] |\n|---|---|---|---|---|---|---|---|\n"
   for sc in walking_xyz walking_static walking_halfsphere walking_rpy sitting_static sitting_xyz; do
-    "$build/bin/ds3d-synth" "$out/synth_$sc" --scenario "$sc" --frames 240 --seed 1 >/dev/null
+    "$build/bin/ds3d-synth" "$out/synth_$sc" --scenario "$sc" --frames 240 --seed 1 --overwrite >/dev/null
     for dyn in none geometric; do
       row "$sc" "$out/synth_$sc" "$dyn" "$out/synth_${sc}_${dyn}"
     done

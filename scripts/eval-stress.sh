@@ -94,7 +94,7 @@ for sc in $scenarios; do
   for seed in $seeds; do
     throttle
     "$synth" "$out/seq/${sc}_$seed" --scenario "$sc" --frames "$frames" --seed "$seed" \
-      --detection-errors 0.2,0.1 >"$out/seq/${sc}_$seed.log" 2>&1 ||
+      --detection-errors 0.2,0.1 --overwrite >"$out/seq/${sc}_$seed.log" 2>&1 ||
       echo "eval-stress: ds3d-synth $sc seed $seed failed (see $out/seq/${sc}_$seed.log)" >&2 &
   done
 done

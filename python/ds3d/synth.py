@@ -25,14 +25,18 @@ SCENARIOS = (
 
 
 def generate(out_dir, scenario="walking_xyz", frames=30, seed=1, humans=-1, fps=30.0,
-             depth_noise=True, parts=False, room_size=(4.5, 5.0, 2.8), furniture=0):
+             depth_noise=True, parts=False, room_size=(4.5, 5.0, 2.8), furniture=0,
+             overwrite=False):
     """Writes a TUM-layout folder (rgb/, depth/, mask/, lists, groundtruth.txt, camera.txt,
     boxes.jsonl; parts/ and parts_loc/ with parts=True). room_size: the room's (x, y, z) extent
     [m], in [3.5, 12] x [3, 12] x [2.2, 5]; furniture: 0-12 extra chairs, tables and floor lamps.
-    Returns a summary dict. Raises ValueError for bad arguments, RuntimeError when writing fails."""
+    A non-empty out_dir is refused unless overwrite=True; the folder is written under a hidden
+    sibling name and renamed into place at the end (an earlier one is removed only then).
+    Returns a summary dict. Raises ValueError for bad arguments, RuntimeError when out_dir is
+    not empty (without overwrite) or writing fails."""
     return _ds3d._synth_generate(str(out_dir), scenario, int(frames), int(seed), int(humans),
                                  float(fps), bool(depth_noise), bool(parts),
-                                 [float(v) for v in room_size], int(furniture))
+                                 [float(v) for v in room_size], int(furniture), bool(overwrite))
 
 
 class Scene:

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "ds3d/detail/json.hpp"
+#include "ds3d/detail/sha256.hpp"
 #include "ds3d/errors.hpp"
 
 namespace ds3d {
@@ -212,7 +213,21 @@ WeightsFile WeightsFile::parse(std::string bytes, std::string source) {
   if (cursor != data_size) {
     fail(src, detail::concat("data buffer has ", data_size, " bytes but tensors cover ", cursor));
   }
+  w.verify_checksum();
   return w;
+}
+
+void WeightsFile::verify_checksum() {
+  const auto it = metadata_.find(kChecksumKey);
+  if (it == metadata_.end()) return;
+  const std::string actual =
+      detail::sha256_hex(std::string_view(bytes_).substr(data_start_, bytes_.size() - data_start_));
+  if (it->second != actual) {
+    fail(source_, detail::concat("__metadata__ ", kChecksumKey, " is '", it->second,
+                                 "' but the tensor bytes hash to '", actual,
+                                 "': the file is corrupted or was edited after export"));
+  }
+  has_checksum_ = true;
 }
 
 std::vector<std::string> WeightsFile::names() const {
@@ -247,6 +262,11 @@ std::vector<float> WeightsFile::f32(std::string_view name,
   for (std::size_t i = 0; i < out.size(); ++i) {
     if (!std::isfinite(out[i]))
       fail(source_, where + detail::concat("element ", i, " is not finite"));
+    if (!(std::abs(out[i]) <= kMaxAbsValue)) {
+      fail(source_, where + detail::concat("element ", i, " = ", out[i],
+                                           " is beyond the supported range |w| <= ", kMaxAbsValue,
+                                           " (a corrupted value?)"));
+    }
   }
   return out;
 }
@@ -258,10 +278,15 @@ const std::string& WeightsFile::metadata(std::string_view key) const {
 }
 
 std::string serialize_safetensors(const std::vector<NamedTensor>& tensors,
-                                  const std::map<std::string, std::string>& metadata) {
+                                  std::map<std::string, std::string> metadata) {
+  std::string data;
+  for (const auto& t : tensors) {
+    data.append(reinterpret_cast<const char*>(t.data.data()), t.data.size() * sizeof(float));
+  }
+  metadata.emplace(WeightsFile::kChecksumKey, detail::sha256_hex(data));
   std::string header = "{";
   bool first = true;
-  if (!metadata.empty()) {
+  {
     header += "\"__metadata__\":{";
     for (const auto& [k, v] : metadata) {
       if (!first) header += ',';
@@ -309,9 +334,7 @@ std::string serialize_safetensors(const std::vector<NamedTensor>& tensors,
   const std::uint64_t n = header.size();
   std::memcpy(out.data(), &n, 8);
   out += header;
-  for (const auto& t : tensors) {
-    out.append(reinterpret_cast<const char*>(t.data.data()), t.data.size() * sizeof(float));
-  }
+  out += data;
   return out;
 }
 

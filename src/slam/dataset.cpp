@@ -2,9 +2,11 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 #include "ds3d/slam/dataset.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <iostream>
+#include <fstream>
 #include <map>
 #include <optional>
 #include <string>
@@ -38,6 +40,40 @@ constexpr std::array<CameraPreset, 4> kCameraPresets{{
     {"bonn", 542.822841, 542.576870, 315.593520, 237.756098, 0.039903, -0.099343, -0.000730,
      -0.000144, 0.0},
 }};
+
+// Gaps between consecutive associated frames longer than max(1 s, 10 x the median interval).
+void find_gaps(const std::vector<RgbdEntry>& entries, DatasetDiagnostics& d) {
+  std::vector<double> dt;
+  for (std::size_t i = 1; i < entries.size(); ++i)
+    dt.push_back(entries[i].timestamp - entries[i - 1].timestamp);
+  if (dt.empty()) return;
+  std::vector<double> sorted = dt;
+  const std::size_t mid = (sorted.size() - 1) / 2;  // the lower median
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(mid), sorted.end());
+  d.gap_threshold = std::max(1.0, 10.0 * sorted[mid]);
+  for (std::size_t i = 0; i < dt.size(); ++i) {
+    if (!(dt[i] > d.gap_threshold)) continue;
+    if (d.large_gaps++ == 0) {
+      d.first_gap_start = entries[i].timestamp;
+      d.first_gap_seconds = dt[i];
+    }
+  }
+}
+
+// True when the file starts like a JPEG (FF D8) but lacks the end-of-image marker (FF D9) in
+// its last 64 bytes (trailing padding allowed): libjpeg decodes such a file with a warning only.
+bool is_truncated_jpeg(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  char head[2] = {};
+  if (!in.read(head, 2) || head[0] != '\xFF' || head[1] != '\xD8') return false;
+  in.seekg(0, std::ios::end);
+  const std::streamoff size = in.tellg();
+  const std::streamoff tail = std::min<std::streamoff>(size, 64);
+  std::string buf(static_cast<std::size_t>(tail), '\0');
+  in.seekg(size - tail);
+  if (!in.read(buf.data(), tail)) return false;  // unreadable: imread reports it
+  return buf.find("\xFF\xD9") == std::string::npos;
+}
 
 }  // namespace
 
@@ -187,15 +223,21 @@ RgbdDataset RgbdDataset::open(const fs::path& dir, const DatasetOptions& options
              ")");
   std::error_code ec;
   DS3D_CHECK_AS(IoError, fs::is_directory(dir, ec), kFn, ": not a directory: '", dir.string(), "'");
-  const auto read_list = [&](const char* name) {
+  const auto read_list = [&](const char* name, std::vector<double>& duplicates) {
     const fs::path p = dir / name;
     DS3D_CHECK_AS(IoError, fs::is_regular_file(p, ec), kFn, ": missing list '", p.string(), "'");
-    return detail::parse_tum_list(detail::read_text_file(p, kFn), p.string(), kFn);
+    return detail::parse_tum_list(detail::read_text_file(p, kFn), p.string(), kFn, &duplicates);
   };
-  const auto rgb = read_list("rgb.txt");
-  const auto depth = read_list("depth.txt");
+  std::vector<double> rgb_dup;
+  std::vector<double> depth_dup;
+  const auto rgb = read_list("rgb.txt", rgb_dup);
+  const auto depth = read_list("depth.txt", depth_dup);
 
   RgbdDataset ds;
+  ds.diagnostics_.rgb_duplicates = rgb_dup.size();
+  ds.diagnostics_.first_rgb_duplicate = rgb_dup.empty() ? 0.0 : rgb_dup.front();
+  ds.diagnostics_.depth_duplicates = depth_dup.size();
+  ds.diagnostics_.first_depth_duplicate = depth_dup.empty() ? 0.0 : depth_dup.front();
   ds.dir_ = dir;
   if (options.camera) {
     options.camera->validate(kFn);
@@ -214,6 +256,8 @@ RgbdDataset RgbdDataset::open(const fs::path& dir, const DatasetOptions& options
     ds.entries_.push_back(
         {rgb[i].timestamp, rgb[i].values.front(), depth[j].timestamp, depth[j].values.front()});
   }
+  ds.diagnostics_.unassociated_rgb = rgb.size() - ds.entries_.size();
+  find_gaps(ds.entries_, ds.diagnostics_);
   return ds;
 }
 
@@ -229,6 +273,10 @@ RgbdFrame RgbdDataset::frame(std::size_t i) const {
   f.depth_timestamp = e.depth_timestamp;
   const fs::path rgb_path = dir_ / e.rgb_file;
   const fs::path depth_path = dir_ / e.depth_file;
+  for (const fs::path& p : {rgb_path, depth_path}) {
+    DS3D_CHECK_AS(IoError, !is_truncated_jpeg(p), kFn, ": image '", p.string(),
+                  "' is a truncated JPEG (no end-of-image marker FF D9 at its end)");
+  }
   f.rgb = cv::imread(rgb_path.string(), cv::IMREAD_COLOR);
   DS3D_CHECK_AS(IoError, !f.rgb.empty(), kFn, ": cannot read rgb image '", rgb_path.string(), "'");
   f.depth = cv::imread(depth_path.string(), cv::IMREAD_UNCHANGED);

@@ -6,6 +6,8 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <filesystem>
+#include <random>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -85,8 +87,94 @@ std::string json_vec(const Eigen::Vector3d& v) {
 
 }  // namespace
 
-SynthSummary generate_sequence(const std::filesystem::path& out_dir, const SynthOptions& options) {
-  namespace fs = std::filesystem;
+namespace {
+
+namespace fs = std::filesystem;
+constexpr const char* kFn = "ds3d::synth::generate_sequence";
+
+// A hidden sibling of `dir` that does not exist yet: ".NAME.TAG<random>".
+fs::path sibling(const fs::path& dir, const char* tag) {
+  thread_local std::mt19937_64 rng(std::random_device{}());
+  std::error_code ec;
+  for (;;) {
+    // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) on chained operator+ here.
+    std::string name(1, '.');
+    name.append(dir.filename().string());
+    name.append(tag);
+    name.append(std::to_string(rng() % 1000000000ULL));
+    const fs::path p = dir.parent_path() / name;
+    if (!fs::exists(p, ec)) return p;
+  }
+}
+
+// Refuses a target that is a file, or a non-empty folder unless `overwrite`.
+void check_target(const fs::path& out, bool overwrite) {
+  std::error_code ec;
+  if (!fs::exists(out, ec)) return;
+  DS3D_CHECK_AS(IoError, fs::is_directory(out, ec), kFn, ": out_dir '", out.string(),
+                "' exists and is not a folder");
+  if (overwrite || fs::is_empty(out, ec)) return;
+  std::size_t n = 0;
+  std::string first;
+  for (const auto& e : fs::directory_iterator(out, ec)) {
+    if (n++ == 0) first = e.path().filename().string();
+  }
+  throw IoError(detail::concat(kFn, ": out_dir '", out.string(), "' is not empty (", n,
+                               " entries, e.g. '", first,
+                               "'); pass overwrite (ds3d-synth --overwrite) to replace it"));
+}
+
+// Moves the finished folder `tmp` to `out`; an earlier `out` is removed only after that.
+void publish(const fs::path& tmp, const fs::path& out) {
+  std::error_code ec;
+  fs::path old;
+  if (fs::exists(out, ec)) {
+    if (fs::is_empty(out, ec)) {
+      fs::remove(out, ec);
+    } else {
+      old = sibling(out, ".old");
+      fs::rename(out, old, ec);
+      DS3D_CHECK_AS(IoError, !ec, kFn, ": cannot move the earlier '", out.string(),
+                    "' aside: ", ec.message());
+    }
+  }
+  fs::rename(tmp, out, ec);
+  if (ec) {
+    std::error_code ec2;
+    if (!old.empty()) fs::rename(old, out, ec2);  // put the earlier sequence back
+    throw IoError(detail::concat(kFn, ": cannot rename '", tmp.string(), "' to '", out.string(),
+                                 "': ", ec.message()));
+  }
+  if (!old.empty()) fs::remove_all(old, ec);
+}
+
+SynthSummary write_sequence(const fs::path& out_dir, const SynthOptions& options);
+
+}  // namespace
+
+SynthSummary generate_sequence(const std::filesystem::path& out_dir, const SynthOptions& options,
+                               bool overwrite) {
+  options.validate();
+  fs::path out = out_dir.lexically_normal();
+  if (!out.has_filename()) out = out.parent_path();  // "dir/" -> "dir"
+  if (out.parent_path().empty()) out = fs::path(".") / out;
+  check_target(out, overwrite);
+  std::error_code ec;
+  fs::create_directories(out.parent_path(), ec);
+  const fs::path tmp = sibling(out, ".tmp");
+  try {
+    const SynthSummary sum = write_sequence(tmp, options);
+    publish(tmp, out);
+    return sum;
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+}
+
+namespace {
+
+SynthSummary write_sequence(const fs::path& out_dir, const SynthOptions& options) {
   const auto t_start = std::chrono::steady_clock::now();
   const SyntheticScene scene(options);
   std::error_code ec;
@@ -168,7 +256,6 @@ SynthSummary generate_sequence(const std::filesystem::path& out_dir, const Synth
                                                    {"height", c.height}}) {
     cam += k + " " + detail::json_number(v) + "\n";
   }
-  constexpr const char* kFn = "ds3d::synth::generate_sequence";
   write_tum_trajectory(out_dir / "groundtruth.txt", gt);
   detail::write_file_atomically(out_dir / "camera.txt", cam, kFn);
   detail::write_file_atomically(out_dir / "boxes.jsonl", boxes, kFn);
@@ -181,5 +268,7 @@ SynthSummary generate_sequence(const std::filesystem::path& out_dir, const Synth
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return sum;
 }
+
+}  // namespace
 
 }  // namespace ds3d::synth

@@ -116,6 +116,23 @@ auto with_files(const std::string& gt_path, const std::string& est_path, const F
 /// The one line of an error; the tool's name is added here only, never in the messages.
 std::string error_line(const std::string& what) { return "ds3d-eval: error: " + what; }
 
+/// Reads a TUM file, printing one warning line per kind of skipped line (NaN/inf values,
+/// 0 0 0 0 quaternions): the evaluation would otherwise see fewer poses without a word.
+ds3d::Trajectory read_checked(const std::string& path, bool keep_zero_quaternion) {
+  const auto r = ds3d::read_tum_file(path, {.keep_zero_quaternion = keep_zero_quaternion});
+  if (r.num_non_finite > 0) {
+    std::cerr << "ds3d-eval: warning: " << path << ": " << r.num_non_finite << " of " << r.num_lines
+              << " line(s) skipped for a NaN or infinite value (first: line "
+              << r.first_non_finite_line << ")\n";
+  }
+  if (r.num_zero_quaternion > 0) {
+    std::cerr << "ds3d-eval: warning: " << path << ": " << r.num_zero_quaternion << " of "
+              << r.num_lines << " line(s) skipped for a 0 0 0 0 quaternion (first: line "
+              << r.first_zero_quaternion_line << "; rpe needs a rotation, ate keeps them)\n";
+  }
+  return r.trajectory;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -167,8 +184,8 @@ int main(int argc, char** argv) {
     }
     if (cmd == "ate") {
       // evaluate_ate.py reads positions only: a 0 0 0 0 quaternion does not drop a line.
-      const auto gt = ds3d::read_tum_file(gt_path, {.keep_zero_quaternion = true}).trajectory;
-      const auto est = ds3d::read_tum_file(est_path, {.keep_zero_quaternion = true}).trajectory;
+      const auto gt = read_checked(gt_path, true);
+      const auto est = read_checked(est_path, true);
       const auto r =
           with_files(gt_path, est_path, [&] { return ds3d::evaluate_ate(gt, est, ate); });
       if (!plot.empty()) {
@@ -201,8 +218,8 @@ int main(int argc, char** argv) {
         if (ate.window > 0) print_windows(r, ate.window);
       }
     } else {
-      const auto gt = ds3d::read_tum_trajectory(gt_path);
-      const auto est = ds3d::read_tum_trajectory(est_path);
+      const auto gt = read_checked(gt_path, false);
+      const auto est = read_checked(est_path, false);
       const auto r =
           with_files(gt_path, est_path, [&] { return ds3d::evaluate_rpe(gt, est, rpe); });
       if (json) {

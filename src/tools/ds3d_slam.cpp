@@ -39,6 +39,8 @@
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/slam/slam_frontend.hpp"
 #pragma GCC diagnostic pop
+#include "ds3d/htx/weights_io.hpp"
+#include "ds3d_slam/run_guard.hpp"
 
 namespace {
 
@@ -253,14 +255,40 @@ void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
   DS3D_CHECK_AS(ds3d::IoError, cv::imwrite(path.string(), img), "cannot write ", path.string());
 }
 
+// Light per-frame record for --stats (the full TrackResult holds keypoints).
+struct FrameRecord {
+  bool tracked = false;
+  ds3d::slam::TrackState state = ds3d::slam::TrackState::kNotInitialized;
+  ds3d::slam::StageTimes times;
+  int features = 0;  // TrackResult::num_features
+  int dynamic = 0;   // num_dynamic
+  int refilled = 0;  // num_refilled
+  int inliers = 0;   // num_inliers
+  bool keyframe = false;
+  bool odometry = false;
+
+  static FrameRecord of(const ds3d::slam::TrackResult& r) {
+    return {r.tracked, r.state,       r.times,    r.num_features, r.num_dynamic,
+            r.num_refilled, r.num_inliers, r.keyframe, r.odometry};
+  }
+};
+
+// Why the run ended before the last requested frame ("" = it did not).
+struct StopInfo {
+  std::string reason;   // "frame error", "SIGINT", "SIGTERM", "error"
+  std::string message;  // the error, for frame and other errors
+  int signal = 0;
+  [[nodiscard]] bool stopped() const { return !reason.empty(); }
+};
+
 // Per-frame counts of the run (--stats "per_frame", one array entry per frame) and their totals.
-void write_per_frame(std::ostream& js, const std::vector<ds3d::slam::TrackResult>& results) {
-  using R = ds3d::slam::TrackResult;
+void write_per_frame(std::ostream& js, const std::vector<FrameRecord>& results) {
+  using R = FrameRecord;
   long long features = 0;
   long long dynamic = 0;
   for (const auto& r : results) {
-    features += r.num_features;
-    dynamic += r.num_dynamic;
+    features += r.features;
+    dynamic += r.dynamic;
   }
   const double fraction =
       features > 0 ? static_cast<double>(dynamic) / static_cast<double>(features) : 0.0;
@@ -272,10 +300,10 @@ void write_per_frame(std::ostream& js, const std::vector<ds3d::slam::TrackResult
   }
   js << "]";
   const std::vector<std::pair<const char*, int (*)(const R&)>> columns{
-      {"features", [](const R& r) { return r.num_features; }},
-      {"dynamic", [](const R& r) { return r.num_dynamic; }},
-      {"refilled", [](const R& r) { return r.num_refilled; }},
-      {"inliers", [](const R& r) { return r.num_inliers; }},
+      {"features", [](const R& r) { return r.features; }},
+      {"dynamic", [](const R& r) { return r.dynamic; }},
+      {"refilled", [](const R& r) { return r.refilled; }},
+      {"inliers", [](const R& r) { return r.inliers; }},
       {"keyframe", [](const R& r) { return r.keyframe ? 1 : 0; }},
       {"odometry", [](const R& r) { return r.odometry ? 1 : 0; }}};
   for (const auto& [name, get] : columns) {
@@ -286,73 +314,12 @@ void write_per_frame(std::ostream& js, const std::vector<ds3d::slam::TrackResult
   js << "\n  }\n";
 }
 
-int run(const Args& a) {
+// Prints the one-line summary (unless --quiet) and returns the --stats JSON.
+std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
+                       const std::vector<FrameRecord>& results, const std::vector<double>& frame_ms,
+                       double wall_s, std::size_t total, const StopInfo& stop,
+                       const ds3d_slam_tool::InputWarnings& warn) {
   const ds3d::slam::SlamConfig& c = a.config;
-  // The source first: a bad --dynamic or --weights fails before any image is read.
-  std::shared_ptr<ds3d::slam::DynamicObjectSource> source;
-  try {
-    source = ds3d::slam::make_dynamic_source(c);
-  } catch (const ds3d::InvalidArgument& e) {
-    usage_error(e.what());
-  }
-  ds3d::DatasetOptions dopt;
-  if (!a.camera.empty()) {
-    const bool preset = a.camera == "tum1" || a.camera == "tum2" || a.camera == "tum3" ||
-                        a.camera == "tum_ros" || a.camera == "bonn";
-    dopt.camera = preset ? ds3d::camera_preset(a.camera) : ds3d::read_camera_file(a.camera);
-  }
-  const auto ds = ds3d::RgbdDataset::open(a.dataset, dopt);
-  DS3D_CHECK_AS(ds3d::IoError, ds.size() > 0, "no associated rgb/depth pairs in ",
-                a.dataset.string());
-  cv::setNumThreads(c.cv_threads);
-
-  ds3d::slam::FrontendConfig cfg = c.frontend;
-  cfg.camera = ds.camera();
-  std::shared_ptr<RecordingMasker> masker;
-  if (c.dynamic != "none") {
-    masker = std::make_shared<RecordingMasker>(c.filter);
-    masker->set_record(!a.viz.empty());
-  }
-  ds3d::slam::SlamFrontend slam(cfg, source, masker);
-  if (!a.viz.empty()) std::filesystem::create_directories(a.viz);
-
-  const std::size_t total = a.max_frames == 0 ? ds.size() : std::min(a.max_frames, ds.size());
-  const bool tty = !a.quiet && isatty(fileno(stderr)) != 0;
-  std::vector<double> frame_ms;  // wall time between consecutive outputs
-  auto last = std::chrono::steady_clock::now();
-  const auto t_start = last;
-  std::size_t done = 0;
-  const auto on_result = [&](const ds3d::slam::TrackResult& r) {
-    const auto now = std::chrono::steady_clock::now();
-    frame_ms.push_back(std::chrono::duration<double, std::milli>(now - last).count());
-    last = now;
-    ++done;
-    if (!a.viz.empty()) {
-      draw_viz(a.viz, ds, r, masker ? masker->take(r.index) : std::vector<ds3d::ImageBox>{});
-    }
-    if (tty && (done % 5 == 0 || done == total)) {
-      const double sec = std::chrono::duration<double>(now - t_start).count();
-      const int width = 30;
-      const auto filled =
-          static_cast<int>(width * static_cast<double>(done) / static_cast<double>(total));
-      std::fprintf(stderr, "\r[%s%s] %zu/%zu frames  %.1f fps  %s   ",
-                   std::string(static_cast<std::size_t>(filled), '#').c_str(),
-                   std::string(static_cast<std::size_t>(width - filled), '.').c_str(), done, total,
-                   sec > 0 ? static_cast<double>(done) / sec : 0.0, ds3d::slam::to_string(r.state));
-      std::fflush(stderr);
-    }
-  };
-  const auto results = ds3d::slam::run_dataset(slam, ds, total, on_result, c.pipeline);
-  if (tty) std::fprintf(stderr, "\n");
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-
-  ds3d::write_tum_trajectory(a.out, ds3d::slam::to_trajectory(slam.trajectory()));
-  if (!a.keyframes.empty()) {
-    ds3d::write_tum_trajectory(a.keyframes, ds3d::slam::to_trajectory(slam.keyframe_trajectory()));
-  }
-  if (!a.map.empty()) slam.write_map_ply(a.map);
-
   std::size_t tracked = 0;
   std::size_t lost = 0;
   std::size_t relocalized = 0;
@@ -379,61 +346,200 @@ int run(const Args& a) {
   for (std::size_t i = 1; i < frame_ms.size(); ++i)
     fps.push_back(frame_ms[i] > 0 ? 1000.0 / frame_ms[i] : 0.0);
   const auto fps_p = percentiles(fps);
-  if (!a.stats.empty()) {
-    using ds3d::detail::json_escape;
-    using ds3d::detail::json_number;
-    std::ostringstream js;
-    auto stage = [&](const char* name, const std::vector<double>& v, bool comma) {
-      const auto p = percentiles(v);
-      js << "    \"" << json_escape(name) << "\""
-         << ": {\"median_ms\": " << json_number(p.median) << ", \"p95_ms\": " << json_number(p.p95)
-         << "}" << (comma ? ",\n" : "\n");
-    };
-    js << "{\n  \"dataset\": \"" << json_escape(a.dataset.string()) << "\",\n"
-       << "  \"dynamic\": \"" << json_escape(c.dynamic) << "\",\n"
-       << "  \"gate\": \"" << ds3d::slam::to_string(c.gate) << "\",\n"
-       << "  \"detect_every\": " << c.htx.detect_every << ",\n"
-       << "  \"frames\": " << results.size() << ",\n"
-       << "  \"tracked_frames\": " << tracked << ",\n"
-       << "  \"lost_frames\": " << lost << ",\n"
-       << "  \"relocalized_frames\": " << relocalized << ",\n"
-       << "  \"keyframes\": " << slam.num_keyframes() << ",\n"
-       << "  \"culled_keyframes\": " << slam.culled_keyframes().size() << ",\n"
-       << "  \"map_points\": " << slam.map_points().rows() << ",\n"
-       << "  \"threaded\": " << (c.pipeline.threaded ? "true" : "false") << ",\n"
-       << "  \"wall_s\": " << json_number(wall_s) << ",\n"
-       << "  \"fps_mean\": " << json_number(static_cast<double>(results.size()) / wall_s) << ",\n"
-       << "  \"fps_median\": " << json_number(fps_p.median) << ",\n"
-       << "  \"frame_interval\": {\"median_ms\": " << json_number(percentiles(frame_ms).median)
-       << ", \"p95_ms\": " << json_number(percentiles(frame_ms).p95) << "},\n"
-       << "  \"local_ba\": {\"count\": " << slam.num_local_ba()
-       << ", \"total_cpu_ms\": " << json_number(slam.local_ba_ms()) << ", \"mean_cpu_ms\": "
-       << json_number(slam.num_local_ba() > 0
-                          ? slam.local_ba_ms() / static_cast<double>(slam.num_local_ba())
-                          : 0.0)
-       << "},\n  \"refine_cpu_ms\": " << json_number(slam.refine_ms()) << ",\n  \"stages\": {\n";
-    stage("extract", ex, true);
-    stage("detect", de, true);
-    stage("filter", fi, true);
-    stage("track", tr, false);
-    js << "  },\n  \"stages_cpu\": {\n";
-    stage("extract", ex_cpu, true);
-    stage("track", tr_cpu, false);
-    js << "  },\n";
-    write_per_frame(js, results);
-    js << "}\n";
-    std::ofstream out(a.stats);
-    out << js.str();
-    DS3D_CHECK_AS(ds3d::IoError, out.good(), "cannot write ", a.stats.string());
-  }
+  using ds3d::detail::json_escape;
+  using ds3d::detail::json_number;
+  std::ostringstream js;
+  auto stage = [&](const char* name, const std::vector<double>& v, bool comma) {
+    const auto p = percentiles(v);
+    js << "    \"" << json_escape(name) << "\""
+       << ": {\"median_ms\": " << json_number(p.median) << ", \"p95_ms\": " << json_number(p.p95)
+       << "}" << (comma ? ",\n" : "\n");
+  };
+  js << "{\n  \"dataset\": \"" << json_escape(a.dataset.string()) << "\",\n"
+     << "  \"dynamic\": \"" << json_escape(c.dynamic) << "\",\n"
+     << "  \"gate\": \"" << ds3d::slam::to_string(c.gate) << "\",\n"
+     << "  \"detect_every\": " << c.htx.detect_every << ",\n"
+     << "  \"frames\": " << results.size() << ",\n"
+     << "  \"frames_requested\": " << total << ",\n"
+     << "  \"stopped_early\": " << (stop.stopped() ? "true" : "false") << ",\n"
+     << "  \"stop_reason\": \"" << json_escape(stop.reason) << "\",\n"
+     << "  \"stop_message\": \"" << json_escape(stop.message) << "\",\n"
+     << "  \"input_warnings\": {\"duplicate_rgb_stamps\": " << warn.duplicate_rgb_stamps
+     << ", \"duplicate_depth_stamps\": " << warn.duplicate_depth_stamps
+     << ", \"unassociated_rgb\": " << warn.unassociated_rgb
+     << ", \"large_gaps\": " << warn.large_gaps
+     << ", \"frames_without_detections\": " << warn.frames_without_detections
+     << ", \"weights_without_checksum\": " << warn.weights_without_checksum << "},\n"
+     << "  \"tracked_frames\": " << tracked << ",\n"
+     << "  \"lost_frames\": " << lost << ",\n"
+     << "  \"relocalized_frames\": " << relocalized << ",\n"
+     << "  \"keyframes\": " << slam.num_keyframes() << ",\n"
+     << "  \"culled_keyframes\": " << slam.culled_keyframes().size() << ",\n"
+     << "  \"map_points\": " << slam.map_points().rows() << ",\n"
+     << "  \"threaded\": " << (c.pipeline.threaded ? "true" : "false") << ",\n"
+     << "  \"wall_s\": " << json_number(wall_s) << ",\n"
+     << "  \"fps_mean\": " << json_number(static_cast<double>(results.size()) / wall_s) << ",\n"
+     << "  \"fps_median\": " << json_number(fps_p.median) << ",\n"
+     << "  \"frame_interval\": {\"median_ms\": " << json_number(percentiles(frame_ms).median)
+     << ", \"p95_ms\": " << json_number(percentiles(frame_ms).p95) << "},\n"
+     << "  \"local_ba\": {\"count\": " << slam.num_local_ba()
+     << ", \"total_cpu_ms\": " << json_number(slam.local_ba_ms()) << ", \"mean_cpu_ms\": "
+     << json_number(slam.num_local_ba() > 0
+                        ? slam.local_ba_ms() / static_cast<double>(slam.num_local_ba())
+                        : 0.0)
+     << "},\n  \"refine_cpu_ms\": " << json_number(slam.refine_ms()) << ",\n  \"stages\": {\n";
+  stage("extract", ex, true);
+  stage("detect", de, true);
+  stage("filter", fi, true);
+  stage("track", tr, false);
+  js << "  },\n  \"stages_cpu\": {\n";
+  stage("extract", ex_cpu, true);
+  stage("track", tr_cpu, false);
+  js << "  },\n";
+  write_per_frame(js, results);
+  js << "}\n";
   if (!a.quiet) {
     std::cout << "frames " << results.size() << ", tracked " << tracked << ", lost " << lost
               << ", keyframes " << slam.num_keyframes() << ", map points "
               << slam.map_points().rows() << ", " << static_cast<double>(results.size()) / wall_s
-              << " fps (median " << fps_p.median << ")\n"
-              << "trajectory written to " << a.out.string() << "\n";
+              << " fps (median " << fps_p.median << ")\n";
   }
-  return 0;
+  return js.str();
+}
+
+// Trajectory, keyframes, map and stats: each written atomically (temporary file, fsync, rename).
+void write_outputs(const Args& a, const ds3d::slam::SlamFrontend& slam, const std::string& stats) {
+  ds3d::write_tum_trajectory(a.out, ds3d::slam::to_trajectory(slam.trajectory()));
+  if (!a.keyframes.empty()) {
+    ds3d::write_tum_trajectory(a.keyframes, ds3d::slam::to_trajectory(slam.keyframe_trajectory()));
+  }
+  if (!a.map.empty()) slam.write_map_ply(a.map);
+  if (!a.stats.empty()) ds3d::detail::write_file_atomically(a.stats, stats, "ds3d-slam: --stats");
+}
+
+// A warning when the htx weights carry no checksum (older exports); nothing to check then.
+std::size_t warn_unchecked_weights(const ds3d::slam::SlamConfig& c) {
+  const auto path = ds3d_slam_tool::htx_weights(c);
+  if (path.empty() || ds3d::WeightsFile::read(path).has_checksum()) return 0;
+  std::cerr << "ds3d-slam: warning: weights '" << path.string()
+            << "' carry no tensors_sha256 checksum (exported before checksums); their values "
+               "were range-checked only\n";
+  return 1;
+}
+
+int run(const Args& a) {
+  const ds3d::slam::SlamConfig& c = a.config;
+  // Outputs first: a missing or read-only folder fails before any weights or image is read.
+  ds3d_slam_tool::check_output_paths(
+      {{"--out", a.out}, {"--stats", a.stats}, {"--keyframes", a.keyframes}, {"--map", a.map}},
+      a.viz);
+  // The source next: a bad --dynamic or --weights fails before any image is read.
+  std::shared_ptr<ds3d::slam::DynamicObjectSource> source;
+  try {
+    source = ds3d::slam::make_dynamic_source(c);
+  } catch (const ds3d::InvalidArgument& e) {
+    usage_error(e.what());
+  }
+  ds3d::DatasetOptions dopt;
+  if (!a.camera.empty()) {
+    const bool preset = a.camera == "tum1" || a.camera == "tum2" || a.camera == "tum3" ||
+                        a.camera == "tum_ros" || a.camera == "bonn";
+    dopt.camera = preset ? ds3d::camera_preset(a.camera) : ds3d::read_camera_file(a.camera);
+  }
+  const auto ds = ds3d::RgbdDataset::open(a.dataset, dopt);
+  DS3D_CHECK_AS(ds3d::IoError, ds.size() > 0, "no associated rgb/depth pairs in ",
+                a.dataset.string());
+  const std::size_t total = a.max_frames == 0 ? ds.size() : std::min(a.max_frames, ds.size());
+  auto input_warnings = ds3d_slam_tool::check_inputs(ds, total, c);
+  input_warnings.weights_without_checksum = warn_unchecked_weights(c);
+  cv::setNumThreads(c.cv_threads);
+
+  ds3d::slam::FrontendConfig cfg = c.frontend;
+  cfg.camera = ds.camera();
+  std::shared_ptr<RecordingMasker> masker;
+  if (c.dynamic != "none") {
+    masker = std::make_shared<RecordingMasker>(c.filter);
+    masker->set_record(!a.viz.empty());
+  }
+  ds3d::slam::SlamFrontend slam(cfg, source, masker);
+
+  const bool tty = !a.quiet && isatty(fileno(stderr)) != 0;
+  std::vector<double> frame_ms;  // wall time between consecutive outputs
+  std::vector<FrameRecord> results;
+  auto last = std::chrono::steady_clock::now();
+  const auto t_start = last;
+  std::size_t done = 0;
+  const auto on_result = [&](const ds3d::slam::TrackResult& r) {
+    const auto now = std::chrono::steady_clock::now();
+    frame_ms.push_back(std::chrono::duration<double, std::milli>(now - last).count());
+    last = now;
+    ++done;
+    results.push_back(FrameRecord::of(r));
+    if (!a.viz.empty()) {
+      draw_viz(a.viz, ds, r, masker ? masker->take(r.index) : std::vector<ds3d::ImageBox>{});
+    }
+    if (tty && (done % 5 == 0 || done == total)) {
+      const double sec = std::chrono::duration<double>(now - t_start).count();
+      const int width = 30;
+      const auto filled =
+          static_cast<int>(width * static_cast<double>(done) / static_cast<double>(total));
+      std::fprintf(stderr, "\r[%s%s] %zu/%zu frames  %.1f fps  %s   ",
+                   std::string(static_cast<std::size_t>(filled), '#').c_str(),
+                   std::string(static_cast<std::size_t>(width - filled), '.').c_str(), done, total,
+                   sec > 0 ? static_cast<double>(done) / sec : 0.0, ds3d::slam::to_string(r.state));
+      std::fflush(stderr);
+    }
+  };
+  // Frames are read here (not by run_dataset) so that an unreadable frame or a stop signal ends
+  // the input: the frames read so far are still tracked, finished and written.
+  StopInfo stop;
+  std::size_t next_index = 0;
+  const auto next = [&]() -> std::optional<ds3d::slam::FrameInput> {
+    if (next_index >= total || ds3d_slam_tool::stop_signal() != 0) return std::nullopt;
+    ds3d::RgbdFrame f;
+    try {
+      f = ds.frame(next_index);
+    } catch (const ds3d::IoError& e) {
+      if (ds3d_slam_tool::stop_signal() == 0) {  // else the stop request is the reason
+        stop.reason = "frame error";
+        stop.message = e.what();
+      }
+      return std::nullopt;
+    }
+    ++next_index;
+    ds3d::slam::FrameInput in;
+    in.index = f.index;
+    in.timestamp = f.timestamp;
+    in.rgb = std::move(f.rgb);
+    in.depth = std::move(f.depth);
+    return in;
+  };
+  ds3d_slam_tool::install_stop_handler();
+  try {
+    (void)ds3d::slam::run_pipeline(slam, next, on_result, c.pipeline);
+  } catch (const std::exception& e) {
+    stop.reason = "error";
+    stop.message = e.what();
+  }
+  if (tty) std::fprintf(stderr, "\n");
+  if (stop.reason.empty() && ds3d_slam_tool::stop_signal() != 0 && next_index < total) {
+    stop.signal = ds3d_slam_tool::stop_signal();
+    stop.reason = ds3d_slam_tool::signal_name(stop.signal);
+  }
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  if (!stop.message.empty()) std::cerr << "ds3d-slam: " << stop.message << "\n";
+  write_outputs(a, slam,
+                report_run(a, slam, results, frame_ms, wall_s, total, stop, input_warnings));
+  if (stop.stopped()) {
+    std::cerr << "ds3d-slam: stopped early (" << stop.reason << ") after " << results.size()
+              << " of " << total << " frames; the trajectory of the frames tracked so far is in "
+              << a.out.string() << "\n";
+  } else if (!a.quiet) {
+    std::cout << "trajectory written to " << a.out.string() << "\n";
+  }
+  if (stop.signal != 0) return 128 + stop.signal;
+  return stop.stopped() ? 1 : 0;
 }
 
 }  // namespace

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // ds3d-synth OUT_DIR --scenario NAME --frames N --seed S [--humans K] [--fps F] [--parts]
-//            [--no-noise] [--room X,Y,Z] [--furniture N] [--detection-errors MISS,FALSE]: writes a
-//            synthetic dynamic RGB-D sequence in TUM layout.
+//            [--no-noise] [--room X,Y,Z] [--furniture N] [--detection-errors MISS,FALSE]
+//            [--overwrite]: writes a synthetic dynamic RGB-D sequence in TUM layout.
 #include <cstdlib>
 #include <exception>
 #include <iostream>
@@ -18,13 +18,15 @@ int usage(const char* msg) {
   std::cerr << "ds3d-synth: " << msg << "\n"
             << "usage: ds3d-synth OUT_DIR [--scenario NAME] [--frames N] [--seed S] [--humans K]\n"
             << "                  [--fps F] [--parts] [--no-noise] [--room X,Y,Z] [--furniture N]\n"
-            << "                  [--detection-errors MISS,FALSE]\n"
+            << "                  [--detection-errors MISS,FALSE] [--overwrite]\n"
             << "scenarios: static_room walking_static walking_xyz walking_halfsphere walking_rpy\n"
             << "           sitting_static sitting_xyz crowd_cross crowd_board crowd_start\n"
             << "           crowd_handheld\n"
             << "--detection-errors: also write detections_noisy.jsonl, person boxes missed with\n"
             << "           probability MISS per frame (in runs) and a false box with probability\n"
-            << "           FALSE per frame\n";
+            << "           FALSE per frame\n"
+            << "--overwrite: replace a non-empty OUT_DIR (refused otherwise); the sequence is\n"
+            << "           written to a hidden sibling folder and renamed into place at the end\n";
   return 2;
 }
 
@@ -59,6 +61,7 @@ int main(int argc, char** argv) {
   try {
     std::string out;
     ds3d::synth::SynthOptions opt;
+    bool overwrite = false;
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
       const auto value = [&]() -> std::string {
@@ -86,6 +89,8 @@ int main(int argc, char** argv) {
         opt.detection_false = mf[1];
       } else if (a == "--furniture") {
         opt.extra_furniture = static_cast<int>(parse_int(a, value()));
+      } else if (a == "--overwrite") {
+        overwrite = true;
       } else if (a == "--no-noise") {
         opt.depth_noise = false;
       } else if (a == "-h" || a == "--help") {
@@ -100,7 +105,7 @@ int main(int argc, char** argv) {
       }
     }
     if (out.empty()) return usage("missing OUT_DIR");
-    const auto s = ds3d::synth::generate_sequence(out, opt);
+    const auto s = ds3d::synth::generate_sequence(out, opt, overwrite);
     std::cout << "ds3d-synth: wrote " << s.frames << " frames of "
               << ds3d::synth::scenario_name(opt.scenario) << " (seed " << opt.seed << ") to " << out
               << "\n  render " << 1e3 * s.render_seconds / static_cast<double>(s.frames)

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <string>
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include "ds3d/eval/trajectory_metrics.hpp"
+#include "support/cli.hpp"
 #include "support/files.hpp"
 
 namespace {
@@ -176,6 +178,8 @@ TEST(ReadTum, ScriptLineRules) {
   EXPECT_EQ(r.num_duplicates, 1U);
   EXPECT_EQ(r.num_zero_quaternion, 1U);
   EXPECT_EQ(r.num_non_finite, 1U);
+  EXPECT_EQ(r.first_zero_quaternion_line, 8U);  // line numbers for the tools' warnings
+  EXPECT_EQ(r.first_non_finite_line, 9U);
   EXPECT_EQ(r.trajectory[0].timestamp, 1.0);
   EXPECT_TRUE(r.trajectory[0].T_world_cam.linear().isApprox(Eigen::Matrix3d::Identity(), 1e-15));
   EXPECT_EQ(r.trajectory[1].T_world_cam.translation().x(), 1e-3);
@@ -184,6 +188,35 @@ TEST(ReadTum, ScriptLineRules) {
   const auto keep = ds3d::parse_tum_trajectory(text, {.keep_zero_quaternion = true});
   ASSERT_EQ(keep.trajectory.size(), 4U);
   EXPECT_EQ(keep.trajectory[3].T_world_cam.translation().x(), 10.0);
+}
+
+// ds3d-eval says why poses are missing: one warning line per kind of skipped line.
+TEST(ReadTum, Ds3dEvalWarnsAboutSkippedLines) {
+  if (!std::filesystem::exists(ds3d::test::tool_path("ds3d-eval"))) GTEST_SKIP() << "not built";
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("ds3d_eval_warn_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::string gt;
+  std::string est;
+  for (int i = 0; i < 10; ++i) {
+    const std::string t = std::to_string(i) + ".0 " + std::to_string(0.1 * i) + " 0 0 ";
+    gt += t + "0 0 0 1\n";
+    est += t + (i < 8 ? "0 0 0 0\n" : "0 0 0 1\n");  // 8 zero quaternions
+  }
+  est += "10.0 nan 0 0 0 0 0 1\n11.0 1 2 3 0 0 0 inf\n";
+  std::ofstream(dir / "gt.txt") << gt;
+  std::ofstream(dir / "est.txt") << est;
+  const auto r = ds3d::test::run_tool(
+      "ds3d-eval", "rpe '" + (dir / "gt.txt").string() + "' '" + (dir / "est.txt").string() + "'");
+  EXPECT_NE(r.output.find("est.txt: 2 of 12 line(s) skipped for a NaN or infinite value (first: "
+                          "line 11)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("est.txt: 8 of 12 line(s) skipped for a 0 0 0 0 quaternion (first: "
+                          "line 1;"),
+            std::string::npos)
+      << r.output;
+  std::filesystem::remove_all(dir);
 }
 
 TEST(ReadTum, RejectsMalformedLinesNamingTheLine) {

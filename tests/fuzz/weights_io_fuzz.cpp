@@ -4,7 +4,7 @@
 // any input must either parse or throw ds3d::IoError / ds3d::InvalidArgument, never crash,
 // hang or read out of bounds. Build (clang, with ASan + UBSan):
 //   clang++ -std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -Iinclude -I/usr/include/eigen3 \
-//     tests/fuzz/weights_io_fuzz.cpp src/htx/weights_io.cpp src/htx/sparse_detector.cpp -o
+//     tests/fuzz/weights_io_fuzz.cpp src/htx/*.cpp -o
 //     build/weights_io_fuzz
 //   build/weights_io_fuzz -max_len=65536 tests/data/htx   # seed corpus: the committed fixtures
 #include <cstddef>

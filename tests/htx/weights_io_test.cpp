@@ -5,9 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <filesystem>
 #include <limits>
+#include <random>
 #include <string>
 
+#include "ds3d/detail/sha256.hpp"
 #include "ds3d/errors.hpp"
 #include "support/files.hpp"
 
@@ -153,6 +156,86 @@ TEST(WeightsIo, AnyTruncationIsAnError) {
        {std::size_t{0}, std::size_t{5}, std::size_t{100}, bytes.size() / 2, bytes.size() - 1}) {
     EXPECT_THROW((void)WeightsFile::parse(bytes.substr(0, cut)), IoError) << cut;
   }
+}
+
+TEST(WeightsIo, Sha256KnownVectors) {
+  using ds3d::detail::sha256_hex;
+  EXPECT_EQ(sha256_hex(""), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  EXPECT_EQ(sha256_hex("abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  EXPECT_EQ(sha256_hex("abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq"),
+            "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1");
+  ds3d::detail::Sha256 h;  // one million 'a', fed in uneven pieces
+  for (int i = 0; i < 10000; ++i) h.update(std::string(i % 2 == 0 ? 37 : 163, 'a'));
+  EXPECT_EQ(h.hex(), "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0");
+}
+
+// Offset of the data buffer of a safetensors image.
+std::size_t data_start(const std::string& bytes) {
+  std::uint64_t n = 0;
+  std::memcpy(&n, bytes.data(), 8);
+  return 8 + static_cast<std::size_t>(n);
+}
+
+TEST(WeightsIo, ChecksumWrittenAndVerified) {
+  const std::string bytes = ds3d::serialize_safetensors({{"a", {3}, {0.5F, -1.0F, 2.0F}}}, {});
+  const auto w = WeightsFile::parse(bytes);
+  EXPECT_TRUE(w.has_checksum());
+  EXPECT_EQ(w.metadata(WeightsFile::kChecksumKey).size(), 64U);
+  // Files exported before checksums load, with has_checksum() false (the tools warn).
+  const auto old = WeightsFile::read(ds3d::test::data_path("htx/tiny_weights.safetensors"));
+  EXPECT_FALSE(old.has_checksum());
+  // A checksum that does not match: rejected, naming the source.
+  const std::string wrong = ds3d::serialize_safetensors(
+      {{"a", {1}, {1.0F}}}, {{WeightsFile::kChecksumKey, std::string(64, '0')}});
+  expect_io_error(wrong, "test: __metadata__ tensors_sha256 is '000");
+}
+
+TEST(WeightsIo, FlippedBitsAreCaught) {
+  std::vector<float> values(64);
+  for (std::size_t i = 0; i < values.size(); ++i) values[i] = 0.01F * static_cast<float>(i) - 0.3F;
+  const std::string good = ds3d::serialize_safetensors({{"w", {64}, values}}, {});
+  const std::size_t start = data_start(good);
+  // One flipped exponent bit (bit 30 of element 7: 0.4 becomes ~1.4e38).
+  std::string bad = good;
+  bad[start + 7 * 4 + 3] = static_cast<char>(bad[start + 7 * 4 + 3] ^ 0x40);
+  expect_io_error(bad, "tensors_sha256");
+  // 100 random single-bit flips anywhere in the tensor bytes.
+  std::mt19937_64 rng(7);
+  std::uniform_int_distribution<std::size_t> bit(0, (good.size() - start) * 8 - 1);
+  for (int k = 0; k < 100; ++k) {
+    const std::size_t b = bit(rng);
+    std::string flipped = good;
+    flipped[start + b / 8] = static_cast<char>(flipped[start + b / 8] ^ (1 << (b % 8)));
+    EXPECT_THROW((void)WeightsFile::parse(flipped, "test"), IoError) << "bit " << b;
+  }
+  // Without a checksum the range check still catches the exponent flip.
+  const std::string old =
+      ds3d::serialize_safetensors({{"w", {64}, values}}, {{WeightsFile::kChecksumKey, "x"}});
+  std::string unchecked = old;
+  // Drop the checksum: rewrite the key so that the file carries none.
+  const std::size_t key = unchecked.find(WeightsFile::kChecksumKey);
+  ASSERT_NE(key, std::string::npos);
+  unchecked[key] = 'T';
+  const std::size_t ustart = data_start(unchecked);
+  unchecked[ustart + 7 * 4 + 3] = static_cast<char>(unchecked[ustart + 7 * 4 + 3] ^ 0x40);
+  const auto w = WeightsFile::parse(unchecked, "test");
+  EXPECT_FALSE(w.has_checksum());
+  try {
+    (void)w.f32("w", {64});
+    ADD_FAILURE() << "no range error";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("tensor 'w': element 7 = "), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("|w| <= 10000"), std::string::npos) << e.what();
+  }
+}
+
+TEST(WeightsIo, ShippedModelCarriesItsChecksum) {
+  const auto path = std::filesystem::path(DS3D_SOURCE_DIR) / "models" / "htx_lite_fast.safetensors";
+  const auto w = WeightsFile::read(path);
+  EXPECT_TRUE(w.has_checksum());
+  EXPECT_EQ(w.metadata(WeightsFile::kChecksumKey),
+            "2f7615e469341b5650e45fd6567491011913767313b8e680f056fca1e782af82");
 }
 
 }  // namespace

@@ -12,7 +12,9 @@
 #include <string>
 #include <tuple>
 #include <utility>
+#include <vector>
 
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "ds3d/errors.hpp"
@@ -118,6 +120,51 @@ TEST_F(TinyFolder, ClearErrors) {
   fs::remove(dir_ / "depth.txt");
   EXPECT_NE(message_of([&] { (void)ds3d::RgbdDataset::open(dir_); }).find("depth.txt"),
             std::string::npos);
+}
+
+// A JPEG cut short decodes with only a libjpeg warning (cv::imread returns a partly grey image):
+// frame() must reject it, naming the file.
+TEST_F(TinyFolder, TruncatedJpegIsAnError) {
+  std::vector<std::uint8_t> jpg;
+  cv::Mat noise(6, 8, CV_8UC3);
+  cv::randu(noise, 0, 255);
+  ASSERT_TRUE(cv::imencode(".jpg", noise, jpg));
+  ASSERT_GE(jpg.size(), 100U);
+  EXPECT_EQ(jpg[jpg.size() - 2], 0xFF);
+  EXPECT_EQ(jpg[jpg.size() - 1], 0xD9);
+  write_text(dir_ / "rgb/0.png", std::string(jpg.begin(), jpg.end()));  // whole: fine
+  const auto ds = ds3d::RgbdDataset::open(dir_);
+  EXPECT_EQ(ds.frame(0).rgb.size(), cv::Size(8, 6));
+  write_text(dir_ / "rgb/0.png", std::string(jpg.begin(), jpg.end() - 40));
+  ASSERT_FALSE(cv::imread((dir_ / "rgb/0.png").string()).empty());  // libjpeg only warns
+  try {
+    (void)ds.frame(0);
+    ADD_FAILURE() << "truncated JPEG accepted";
+  } catch (const ds3d::IoError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("rgb/0.png' is a truncated JPEG"), std::string::npos) << m;
+  }
+}
+
+// Duplicate stamps and long gaps are counted, not silently dropped.
+TEST_F(TinyFolder, DiagnosticsCountDuplicatesAndGaps) {
+  const auto clean = ds3d::RgbdDataset::open(dir_);
+  EXPECT_EQ(clean.diagnostics().rgb_duplicates, 0U);
+  EXPECT_EQ(clean.diagnostics().large_gaps, 0U);
+  EXPECT_EQ(clean.diagnostics().unassociated_rgb, 1U);  // 10.100
+  write_text(dir_ / "rgb.txt",
+             "10.000 rgb/0.png\n10.033 rgb/1.png\n10.033 rgb/2.png\n1010.066 rgb/2.png\n");
+  write_text(dir_ / "depth.txt", "10.001 depth/0.png\n10.030 depth/1.png\n1010.07 depth/2.png\n");
+  const auto ds = ds3d::RgbdDataset::open(dir_);
+  const auto& d = ds.diagnostics();
+  EXPECT_EQ(ds.size(), 3U);
+  EXPECT_EQ(d.rgb_duplicates, 1U);
+  EXPECT_DOUBLE_EQ(d.first_rgb_duplicate, 10.033);
+  EXPECT_EQ(d.depth_duplicates, 0U);
+  EXPECT_EQ(d.large_gaps, 1U);
+  EXPECT_DOUBLE_EQ(d.first_gap_start, 10.033);
+  EXPECT_NEAR(d.first_gap_seconds, 1000.033, 1e-9);
+  EXPECT_GE(d.gap_threshold, 1.0);
 }
 
 TEST(CameraPreset, KnownNamesAndFiles) {

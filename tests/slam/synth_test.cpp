@@ -11,14 +11,17 @@
 #include <cmath>
 #include <cstddef>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include <opencv2/features2d.hpp>
 
-#include "ds3d/slam/dataset.hpp"
 #include "ds3d/detail/json.hpp"
+#include "ds3d/errors.hpp"
 #include "ds3d/eval/trajectory_metrics.hpp"
+#include "ds3d/slam/dataset.hpp"
+#include "support/cli.hpp"
 #include "support/files.hpp"
 
 namespace {
@@ -313,6 +316,54 @@ TEST(Synth, WritesATumFolderThatReadsBack) {
     EXPECT_EQ(n, 6U) << sub;
   }
   fs::remove_all(dir);
+}
+
+// An earlier sequence is never mixed with a new one: a non-empty folder is refused unless
+// overwrite, which replaces it whole; no temporary folder is left beside it.
+TEST(Synth, RefusesANonEmptyFolderUnlessOverwrite) {
+  const fs::path root = fs::temp_directory_path() / ("ds3d_synth_ow_" + std::to_string(::getpid()));
+  fs::remove_all(root);
+  const fs::path dir = root / "seq";
+  const SynthOptions three{.scenario = Scenario::kStaticRoom, .num_frames = 3, .seed = 1};
+  (void)ds3d::synth::generate_sequence(dir, three);
+  std::ofstream(dir / "stale.txt") << "from an earlier run";
+  try {
+    (void)ds3d::synth::generate_sequence(dir, {.scenario = Scenario::kStaticRoom, .num_frames = 2});
+    ADD_FAILURE() << "non-empty folder accepted";
+  } catch (const ds3d::IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("'" + dir.string() + "' is not empty"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(ds3d::RgbdDataset::open(dir).size(), 3U);  // untouched
+  EXPECT_TRUE(fs::exists(dir / "stale.txt"));
+  (void)ds3d::synth::generate_sequence(dir, {.scenario = Scenario::kStaticRoom, .num_frames = 2},
+                                       /*overwrite=*/true);
+  EXPECT_EQ(ds3d::RgbdDataset::open(dir).size(), 2U);
+  EXPECT_FALSE(fs::exists(dir / "stale.txt"));
+  // Bad options fail before anything is touched.
+  EXPECT_THROW((void)ds3d::synth::generate_sequence(dir, {.num_frames = 0}, true),
+               ds3d::InvalidArgument);
+  EXPECT_EQ(ds3d::RgbdDataset::open(dir).size(), 2U);
+  // An empty folder is fine without overwrite; a file is not a folder.
+  fs::create_directories(root / "empty");
+  (void)ds3d::synth::generate_sequence(root / "empty", {.num_frames = 1});
+  std::ofstream(root / "file") << "x";
+  EXPECT_THROW((void)ds3d::synth::generate_sequence(root / "file", {.num_frames = 1}, true),
+               ds3d::IoError);
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(root)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"empty", "file", "seq"}));  // no .seq.tmp* left
+  // The tool: refused without --overwrite (exit 1, the folder named), replaced with it.
+  if (fs::exists(ds3d::test::tool_path("ds3d-synth"))) {
+    auto r = ds3d::test::run_tool("ds3d-synth", "'" + dir.string() + "' --frames 1");
+    EXPECT_EQ(r.code, 1) << r.output;
+    EXPECT_NE(r.output.find("is not empty"), std::string::npos) << r.output;
+    r = ds3d::test::run_tool("ds3d-synth", "'" + dir.string() + "' --frames 1 --overwrite");
+    EXPECT_EQ(r.code, 0) << r.output;
+    EXPECT_EQ(ds3d::RgbdDataset::open(dir).size(), 1U);
+  }
+  fs::remove_all(root);
 }
 
 }  // namespace

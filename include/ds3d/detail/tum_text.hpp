@@ -7,6 +7,9 @@
 // first character is '#', tokens are split on ' ' and stripped, numbers follow Python's float().
 // Also the atomic file writer (temp file + rename). Not API.
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -148,8 +151,17 @@ struct TextLine {
   return ss.str();
 }
 
-/// Writes `content` to a temporary file beside `path`, then renames it over `path`, so a reader
-/// never sees a half-written file. Throws IoError naming `function` and the path.
+/// Flushes a written file's data to the storage device (fsync); false when that fails.
+[[nodiscard]] inline bool sync_file(const std::filesystem::path& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  const bool ok = ::fsync(fd) == 0;
+  return ::close(fd) == 0 && ok;
+}
+
+/// Writes `content` to a temporary file beside `path`, flushes it to the device (fsync), then
+/// renames it over `path`, so a reader never sees a half-written file, not even after a power
+/// cut. Throws IoError naming `function` and the path.
 inline void write_file_atomically(const std::filesystem::path& path, std::string_view content,
                                   const char* function) {
   namespace fs = std::filesystem;
@@ -167,9 +179,8 @@ inline void write_file_atomically(const std::filesystem::path& path, std::string
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     DS3D_CHECK_AS(IoError, out.good(), function, ": cannot create '", tmp.string(), "'");
     out.write(content.data(), static_cast<std::streamsize>(content.size()));
-    out.flush();
-    if (!out.good()) {
-      out.close();
+    out.close();
+    if (!out.good() || !sync_file(tmp)) {
       fs::remove(tmp, ec);
       throw IoError(concat(function, ": write failed on '", tmp.string(), "'"));
     }
@@ -194,11 +205,12 @@ struct TumListEntry {
 };
 
 /// Parses a TUM list file as associate.py's read_file_list(): lines with fewer than 2 tokens are
-/// ignored, a repeated stamp keeps its later line, the result is sorted by stamp.
+/// ignored, a repeated stamp keeps its later line, the result is sorted by stamp. When
+/// `duplicates` is given, the stamp of every line replaced by a later one is appended to it.
 /// Throws IoError naming `function`, `source` and the line for a stamp that is not a finite number.
-[[nodiscard]] inline std::vector<TumListEntry> parse_tum_list(std::string_view text,
-                                                              std::string_view source,
-                                                              const char* function) {
+[[nodiscard]] inline std::vector<TumListEntry> parse_tum_list(
+    std::string_view text, std::string_view source, const char* function,
+    std::vector<double>* duplicates = nullptr) {
   std::vector<TumListEntry> out;
   for (const auto& line : split_tum_lines(text)) {
     if (line.tokens.size() < 2) continue;
@@ -216,7 +228,10 @@ struct TumListEntry {
   std::vector<TumListEntry> unique;
   unique.reserve(out.size());
   for (std::size_t i = 0; i < out.size(); ++i) {
-    if (i + 1 < out.size() && out[i + 1].timestamp == out[i].timestamp) continue;
+    if (i + 1 < out.size() && out[i + 1].timestamp == out[i].timestamp) {
+      if (duplicates != nullptr) duplicates->push_back(out[i].timestamp);
+      continue;
+    }
     unique.push_back(std::move(out[i]));
   }
   return unique;

@@ -52,6 +52,8 @@ struct TumReadResult {
   std::size_t num_duplicates = 0;       ///< lines replaced by a later line with the same stamp
   std::size_t num_zero_quaternion = 0;  ///< lines skipped for a 0 0 0 0 quaternion
   std::size_t num_non_finite = 0;       ///< lines skipped for a NaN or infinite value
+  std::size_t first_zero_quaternion_line = 0;  ///< line number of the first such line (0: none)
+  std::size_t first_non_finite_line = 0;       ///< line number of the first such line (0: none)
 };
 
 namespace detail {
@@ -120,12 +122,12 @@ inline void append_double(std::string& out, double v) {
     // ATE reading (positions only) still sees zero-quaternion lines; RPE skips them.
     if (row.v[4] == 0 && row.v[5] == 0 && row.v[6] == 0 && row.v[7] == 0 &&
         !options.keep_zero_quaternion) {
-      ++res.num_zero_quaternion;
+      if (res.num_zero_quaternion++ == 0) res.first_zero_quaternion_line = line.number;
       continue;
     }
     if (!std::all_of(std::begin(row.v), std::end(row.v),
                      [](double x) { return std::isfinite(x); })) {
-      ++res.num_non_finite;
+      if (res.num_non_finite++ == 0) res.first_non_finite_line = line.number;
       continue;
     }
     rows.push_back(row);

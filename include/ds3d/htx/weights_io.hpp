@@ -10,7 +10,15 @@
 /// little-endian, back to back. Every defect (short file, header length beyond the file or over
 /// 100 MB, invalid UTF-8 or JSON, unknown dtype, negative or huge shapes, offsets out of range,
 /// overlapping or leaving holes, byte length != product(shape) x dtype size, non-finite float
-/// values) is a ds3d::IoError whose message names the source and the tensor.
+/// values or values beyond |w| <= 1e4) is a ds3d::IoError whose message names the source and the
+/// tensor.
+///
+/// Integrity: the exporters (ds3d.htx.export, serialize_safetensors) store the SHA-256 of the
+/// whole data buffer as 64 lowercase hex digits in `__metadata__["tensors_sha256"]`. The reader
+/// recomputes it and rejects a file whose value differs (one flipped bit is enough); a file
+/// without the key (exported before checksums) is accepted, has_checksum() is then false, and
+/// the tools print one warning. The range bound 1e4 is about 800 x the largest |w| of the
+/// shipped model (12.3), so it only catches corrupted values (e.g. a flipped exponent bit).
 /// Compiled in ds3d::slam (src/htx/weights_io.cpp); needs no OpenCV.
 
 #include <cstddef>
@@ -66,8 +74,17 @@ class WeightsFile {
   [[nodiscard]] const std::string& metadata(std::string_view key) const;
   /// Where the file came from (path or the `source` given to parse()).
   [[nodiscard]] const std::string& source() const noexcept { return source_; }
+  /// True when the metadata carried tensors_sha256 and it matched (parse() throws otherwise).
+  [[nodiscard]] bool has_checksum() const noexcept { return has_checksum_; }
+
+  /// Metadata key of the data buffer's SHA-256 (hex).
+  static constexpr const char* kChecksumKey = "tensors_sha256";
+  /// Largest |value| f32() accepts.
+  static constexpr float kMaxAbsValue = 1e4F;
 
  private:
+  void verify_checksum();
+  bool has_checksum_ = false;
   std::string source_;
   std::string bytes_;
   std::size_t data_start_ = 0;
@@ -83,11 +100,12 @@ struct NamedTensor {
 };
 
 /// Serialises tensors (F32) and string metadata into the safetensors layout (header padded with
-/// spaces to 8-byte alignment), the inverse of WeightsFile::parse.
+/// spaces to 8-byte alignment), the inverse of WeightsFile::parse. The data buffer's SHA-256 is
+/// added as metadata "tensors_sha256" unless `metadata` already has that key.
 /// @throws ds3d::InvalidArgument if a tensor's data size does not match its shape or a name
 /// repeats.
 [[nodiscard]] std::string serialize_safetensors(const std::vector<NamedTensor>& tensors,
-                                                const std::map<std::string, std::string>& metadata);
+                                                std::map<std::string, std::string> metadata);
 
 /// Human-readable shape "[a, b]" (for error messages).
 [[nodiscard]] std::string shape_string(const std::vector<std::int64_t>& shape);

@@ -67,6 +67,20 @@ struct DatasetOptions {
   std::optional<PinholeCamera> camera = std::nullopt;  ///< overrides camera.txt and the default
 };
 
+/// What RgbdDataset::open() noticed in the lists without rejecting them (a tool warns about
+/// each non-zero count; the library prints nothing).
+struct DatasetDiagnostics {
+  std::size_t rgb_duplicates = 0;    ///< rgb.txt lines replaced by a later line, same stamp
+  double first_rgb_duplicate = 0;    ///< stamp of the first of them [s]
+  std::size_t depth_duplicates = 0;  ///< depth.txt lines replaced by a later line, same stamp
+  double first_depth_duplicate = 0;  ///< stamp of the first of them [s]
+  std::size_t unassociated_rgb = 0;  ///< rgb stamps with no depth stamp within max_difference
+  std::size_t large_gaps = 0;        ///< consecutive associated frames > gap_threshold apart
+  double first_gap_start = 0;        ///< rgb stamp of the frame before the first such gap [s]
+  double first_gap_seconds = 0;      ///< length of that gap [s]
+  double gap_threshold = 0;          ///< max(1 s, 10 x the median frame interval) [s]
+};
+
 /// One associated rgb/depth pair (file names relative to the dataset folder).
 struct RgbdEntry {
   double timestamp = 0;        ///< rgb stamp [s]
@@ -92,7 +106,9 @@ class RgbdDataset {
 
   /// Loads frame i (rgb as BGR CV_8UC3, depth as raw CV_16UC1).
   /// @throws ds3d::InvalidArgument for i >= size(); ds3d::IoError for an unreadable image, a
-  ///         depth image that is not 16-bit single-channel, or rgb/depth of different sizes.
+  ///         truncated JPEG (no end-of-image marker; libjpeg would only warn and return a
+  ///         partly grey image), a depth image that is not 16-bit single-channel, or rgb/depth
+  ///         of different sizes. Every message names the file.
   [[nodiscard]] RgbdFrame frame(std::size_t i) const;
 
   /// options.camera, else camera.txt in the folder, else the preset of a recognised folder name
@@ -109,11 +125,15 @@ class RgbdDataset {
   /// The associated pairs, sorted by rgb stamp.
   [[nodiscard]] const std::vector<RgbdEntry>& entries() const;
 
+  /// Duplicate stamps, unassociated rgb frames and large time gaps found by open().
+  [[nodiscard]] const DatasetDiagnostics& diagnostics() const noexcept { return diagnostics_; }
+
  private:
   RgbdDataset() = default;
   std::filesystem::path dir_;
   PinholeCamera camera_;
   std::vector<RgbdEntry> entries_;
+  DatasetDiagnostics diagnostics_;
 };
 
 }  // namespace ds3d

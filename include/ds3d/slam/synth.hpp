@@ -175,10 +175,16 @@ struct SynthSummary {
 /// camera frame, class "person", score 1, one line per frame), and with options.write_parts:
 /// parts/TIME.png (CV_8UC3: B = human id (k+1), G = part id, R = 0) and parts_loc/TIME.png
 /// (CV_16UC3, x y z location in the box x 65535); TIME is the frame's timestamp. Every file is
-/// written to a temporary name and renamed; the lists are written last.
-/// @param out_dir created if missing
+/// written to a temporary name and flushed to the device (fsync); the lists are written last.
+/// The whole sequence goes into a hidden sibling folder (.NAME.tmpN) that is renamed to out_dir
+/// at the end, so an interrupted run never leaves a half-written or mixed folder; an earlier
+/// out_dir (with overwrite) is removed only once the new one is in place.
+/// @param out_dir created if missing (with its parents); must be empty unless `overwrite`
 /// @param options scenario, frames, seed, humans, fps, noise and parts (validated first)
-/// @throws ds3d::InvalidArgument for bad options; ds3d::IoError when writing fails.
-SynthSummary generate_sequence(const std::filesystem::path& out_dir, const SynthOptions& options);
+/// @param overwrite replace a non-empty out_dir (e.g. an earlier sequence)
+/// @throws ds3d::InvalidArgument for bad options; ds3d::IoError when out_dir is a file or a
+///   non-empty folder without `overwrite` (naming it), or when writing fails.
+SynthSummary generate_sequence(const std::filesystem::path& out_dir, const SynthOptions& options,
+                               bool overwrite = false);
 
 }  // namespace ds3d::synth

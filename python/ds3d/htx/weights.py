@@ -7,6 +7,7 @@ starts 8-byte aligned), then the raw little-endian C-order tensors back to back.
 folded into the preceding bias-free layer: W' = W * g / sqrt(var + eps), b' = beta - mean * g /
 sqrt(var + eps). 1x1 convolutions are stored as [out, in].
 """
+import hashlib
 import json
 import struct
 
@@ -80,8 +81,13 @@ def folded_tensors(model):
     return t
 
 
-def write_safetensors(path, tensors, metadata=None):
-    """Writes name -> numpy array (dtypes of spec §7) and string metadata to ``path``."""
+CHECKSUM_KEY = "tensors_sha256"
+
+
+def write_safetensors(path, tensors, metadata=None, checksum=False):
+    """Writes name -> numpy array (dtypes of spec §7) and string metadata to ``path``.
+    With ``checksum``, the SHA-256 of the data buffer goes into metadata["tensors_sha256"]
+    (checked by the C++ reader and by read_safetensors)."""
     header, chunks, offset = {}, [], 0
     if metadata:
         if not all(isinstance(k, str) and isinstance(v, str) for k, v in metadata.items()):
@@ -96,6 +102,8 @@ def write_safetensors(path, tensors, metadata=None):
         header[name] = {"dtype": code, "shape": list(a.shape), "data_offsets": [offset, offset + len(raw)]}
         chunks.append(raw)
         offset += len(raw)
+    if checksum:
+        header.setdefault("__metadata__", {})[CHECKSUM_KEY] = hashlib.sha256(b"".join(chunks)).hexdigest()
     text = json.dumps(header, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
     text += b" " * ((8 - (8 + len(text)) % 8) % 8)
     with open(path, "wb") as f:
@@ -117,6 +125,9 @@ def read_safetensors(path):
     header = json.loads(data[8:8 + n].decode("utf-8"))
     meta = header.pop("__metadata__", {})
     buf = data[8 + n:]
+    if CHECKSUM_KEY in meta and hashlib.sha256(buf).hexdigest() != meta[CHECKSUM_KEY]:
+        raise RuntimeError(f"ds3d.htx.read_safetensors: {path}: {CHECKSUM_KEY} does not match the "
+                           "tensor bytes: the file is corrupted or was edited after export")
     out = {}
     for name, e in header.items():
         b, end = e["data_offsets"]
@@ -128,4 +139,4 @@ def export(model, path):
     """Writes ``model``'s weights (BatchNorm folded, float32) and its config to ``path``
     (format "ds3d-htx", version 1) for ``ds3d.SparseDetector.load(path)``."""
     meta = {"format": FORMAT, "version": VERSION, "config": json.dumps(model.config, sort_keys=True)}
-    write_safetensors(path, folded_tensors(model), meta)
+    write_safetensors(path, folded_tensors(model), meta, checksum=True)

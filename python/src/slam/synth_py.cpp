@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "ds3d/slam/dataset.hpp"
 #include "ds3d/errors.hpp"
+#include "ds3d/slam/dataset.hpp"
 #include "ds3d/slam/synth.hpp"
 #include "slam_py_util.hpp"
 
@@ -104,13 +104,13 @@ void bind_synth(py::module_& m) {
       "_synth_generate",
       [](const std::string& out_dir, const std::string& scenario, int frames, std::uint64_t seed,
          int humans, double fps, bool depth_noise, bool parts, const std::vector<double>& room,
-         int furniture) {
+         int furniture, bool overwrite) {
         const auto o =
             make_options(scenario, frames, seed, humans, fps, depth_noise, parts, room, furniture);
         ds3d::synth::SynthSummary s;
         {
           py::gil_scoped_release release;
-          s = ds3d::synth::generate_sequence(out_dir, o);
+          s = ds3d::synth::generate_sequence(out_dir, o, overwrite);
         }
         py::dict d;
         d["frames"] = s.frames;
@@ -121,5 +121,5 @@ void bind_synth(py::module_& m) {
       },
       py::arg("out_dir"), py::arg("scenario"), py::arg("frames"), py::arg("seed"),
       py::arg("humans"), py::arg("fps"), py::arg("depth_noise"), py::arg("parts"),
-      py::arg("room_size"), py::arg("furniture"));
+      py::arg("room_size"), py::arg("furniture"), py::arg("overwrite") = false);
 }

@@ -9,10 +9,10 @@
 #include <iostream>
 #include <random>
 
-#include "ds3d/slam/dataset.hpp"
-#include "ds3d/slam/synth.hpp"
 #include "ds3d/eval/trajectory.hpp"
 #include "ds3d/eval/trajectory_metrics.hpp"
+#include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/synth.hpp"
 #include "ds3d/slam/trajectory_plot.hpp"
 #include "ds3d_demo/demo.hpp"
 
@@ -24,7 +24,7 @@ void run_eval_demo(const ds3d::demo::Context& ctx) {
   opt.scenario = ds3d::synth::Scenario::kWalkingXyz;
   opt.num_frames = ctx.quick ? 15 : 90;
   opt.seed = ctx.seed;
-  const auto s = ds3d::synth::generate_sequence(dir, opt);
+  const auto s = ds3d::synth::generate_sequence(dir, opt, /*overwrite=*/true);
   const auto ds = ds3d::RgbdDataset::open(dir);
   std::printf("  generated %zu frames into %s (render %.1f ms/frame CPU, %.0f dynamic px/frame)\n",
               s.frames, dir.string().c_str(),

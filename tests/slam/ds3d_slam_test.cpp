@@ -1,0 +1,253 @@
+// SPDX-License-Identifier: Apache-2.0
+// SPDX-FileCopyrightText: 2026 ds3d authors
+// ds3d-slam's safeguards: output paths checked before the first frame, the frames tracked before
+// an unreadable frame or a stop signal written out, warnings for suspicious input lists.
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "ds3d/eval/trajectory.hpp"
+#include "ds3d/slam/synth.hpp"
+#include "support/cli.hpp"
+#include "support/files.hpp"
+
+extern char** environ;
+
+// GCC 12 -O3 reports a false -Wrestrict inside std::string's operator+ as inlined here.
+#pragma GCC diagnostic ignored "-Wrestrict"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// One 8-frame synthetic sequence per test binary, copied per test.
+const fs::path& sequence() {
+  static const fs::path dir = [] {
+    const fs::path d = fs::temp_directory_path() / ("ds3d_slam_cli_" + std::to_string(::getpid()));
+    fs::remove_all(d);
+    ds3d::synth::SynthOptions o;
+    o.scenario = ds3d::synth::Scenario::kStaticRoom;
+    o.num_frames = 8;
+    o.seed = 3;
+    (void)ds3d::synth::generate_sequence(d / "seq", o);
+    return d / "seq";
+  }();
+  return dir;
+}
+
+// Whether process `pid` still has a handler for SIGINT (SigCgt of /proc/PID/status).
+bool sigint_caught(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("SigCgt:", 0) == 0) {
+      return (std::stoull(line.substr(7), nullptr, 16) & (1ULL << (SIGINT - 1))) != 0;
+    }
+  }
+  return false;
+}
+
+class Ds3dSlamCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!fs::exists(ds3d::test::tool_path("ds3d-slam"))) GTEST_SKIP() << "ds3d-slam not built";
+    work_ =
+        sequence().parent_path() / ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    fs::remove_all(work_);
+    fs::create_directories(work_);
+    fs::copy(sequence(), work_ / "seq", fs::copy_options::recursive);
+  }
+  void TearDown() override {
+    if (!work_.empty()) fs::remove_all(work_);
+  }
+  // The rgb or depth file of frame i (as listed).
+  [[nodiscard]] fs::path listed(const char* list, std::size_t i) const {
+    const auto lines = ds3d::test::read_lines(work_ / "seq" / list);
+    std::size_t k = 0;
+    for (const auto& l : lines) {
+      if (l.empty() || l[0] == '#') continue;
+      if (k++ == i) return work_ / "seq" / l.substr(l.find(' ') + 1);
+    }
+    return {};
+  }
+  [[nodiscard]] std::string args(const std::string& extra = "") const {
+    return "'" + (work_ / "seq").string() + "' --quiet --out '" + (work_ / "traj.txt").string() +
+           "' --stats '" + (work_ / "stats.json").string() + "' " + extra;
+  }
+  [[nodiscard]] std::size_t poses() const {
+    return ds3d::read_tum_trajectory(work_ / "traj.txt").size();
+  }
+  fs::path work_;
+};
+
+TEST_F(Ds3dSlamCli, OutputPathsAreCheckedBeforeTheFirstFrame) {
+  const fs::path missing = work_ / "no" / "such";
+  auto r = ds3d::test::run_tool("ds3d-slam", "'" + (work_ / "seq").string() + "' --out '" +
+                                                 (missing / "t.txt").string() + "'");
+  EXPECT_NE(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("--out '" + (missing / "t.txt").string() + "': folder '" +
+                          missing.string() + "' does not exist"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("frames "), std::string::npos) << "frames were run:\n" << r.output;
+  for (const char* flag : {"--stats", "--keyframes", "--map"}) {
+    r = ds3d::test::run_tool("ds3d-slam",
+                             args(std::string(flag) + " '" + (missing / "x").string() + "'"));
+    EXPECT_NE(r.code, 0) << flag;
+    EXPECT_NE(r.output.find(std::string(flag) + " '"), std::string::npos) << r.output;
+  }
+  std::ofstream(work_ / "afile") << "x";
+  r = ds3d::test::run_tool("ds3d-slam", args("--viz '" + (work_ / "afile").string() + "'"));
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("is not a folder"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(work_ / "traj.txt"));
+}
+
+// Frame 5 of 8 unreadable in several ways: exit 1 naming the file, and the 5 frames before it
+// tracked and written, with stopped_early in --stats.
+TEST_F(Ds3dSlamCli, FrameErrorKeepsTheFramesTrackedSoFar) {
+  const fs::path rgb5 = listed("rgb.txt", 5);
+  const fs::path depth5 = listed("depth.txt", 5);
+  const std::string png = ds3d::test::read_file(rgb5);
+  const std::string depth_png = ds3d::test::read_file(depth5);
+  struct Case {
+    const char* name;
+    std::function<void()> damage;
+    std::string needle;
+  };
+  const std::vector<Case> cases = {
+      {"truncated PNG", [&] { std::ofstream(rgb5, std::ios::binary) << png.substr(0, 200); },
+       rgb5.string()},
+      {"missing file", [&] { fs::remove(rgb5); }, rgb5.string()},
+      {"8-bit depth",
+       [&] { cv::imwrite(depth5.string(), cv::Mat(480, 640, CV_8UC1, cv::Scalar(9))); },
+       "must be 16-bit"},
+      {"size mismatch",
+       [&] { cv::imwrite(depth5.string(), cv::Mat(240, 320, CV_16UC1, cv::Scalar(900))); },
+       "320x240"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.name);
+    std::ofstream(rgb5, std::ios::binary) << png;
+    std::ofstream(depth5, std::ios::binary) << depth_png;
+    fs::remove(work_ / "traj.txt");
+    c.damage();
+    const auto r = ds3d::test::run_tool("ds3d-slam", args());
+    EXPECT_EQ(r.code, 1) << r.output;
+    EXPECT_NE(r.output.find(c.needle), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("stopped early (frame error) after 5 of 8 frames"), std::string::npos)
+        << r.output;
+    ASSERT_TRUE(fs::exists(work_ / "traj.txt")) << r.output;
+    EXPECT_EQ(poses(), 5U);
+    const auto stats = ds3d::test::read_json(work_ / "stats.json");
+    EXPECT_TRUE(stats.at("stopped_early").as_bool());
+    EXPECT_EQ(stats.at("stop_reason").as_string(), "frame error");
+    EXPECT_EQ(stats.at("frames").as_number(), 5.0);
+    EXPECT_EQ(stats.at("frames_requested").as_number(), 8.0);
+  }
+  // No temporary file is left beside the outputs.
+  for (const auto& e : fs::directory_iterator(work_)) {
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+  }
+}
+
+// SIGINT while frame 3 is being read (its rgb file is a FIFO the test holds open: no timing):
+// the frames read before it are tracked and written, exit 130.
+TEST_F(Ds3dSlamCli, SigintWritesTheFramesTrackedSoFar) {
+  const fs::path rgb3 = listed("rgb.txt", 3);
+  fs::remove(rgb3);
+  ASSERT_EQ(::mkfifo(rgb3.c_str(), 0600), 0);
+  const std::string cmd = "exec '" + ds3d::test::tool_path("ds3d-slam").string() + "' " + args() +
+                          " > '" + (work_ / "log.txt").string() + "' 2>&1";
+  const char* argv[] = {"sh", "-c", cmd.c_str(), nullptr};
+  pid_t pid = 0;
+  ASSERT_EQ(::posix_spawn(&pid, "/bin/sh", nullptr, nullptr, const_cast<char**>(argv), environ), 0);
+  // Opening the FIFO for writing blocks until ds3d-slam opens it to read frame 3.
+  int fd = ::open(rgb3.c_str(), O_WRONLY);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::kill(pid, SIGINT), 0);
+  // The handler has run once SIGINT is no longer in the caught set (it restores the default).
+  while (sigint_caught(pid)) ::usleep(1000);
+  ::close(fd);  // EOF: the frame is unreadable, but the stop request came first
+  // Every later reader of the FIFO (the image decoder) gets EOF as well, until ds3d-slam exits.
+  int status = 0;
+  while (::waitpid(pid, &status, WNOHANG) == 0) {
+    fd = ::open(rgb3.c_str(), O_WRONLY | O_NONBLOCK);
+    if (fd >= 0) ::close(fd);
+    ::usleep(1000);
+  }
+  const std::string log = ds3d::test::read_file(work_ / "log.txt");
+  ASSERT_TRUE(WIFEXITED(status)) << log;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << log;
+  EXPECT_NE(log.find("stopped early (SIGINT) after 3 of 8 frames"), std::string::npos) << log;
+  EXPECT_EQ(poses(), 3U);
+  const auto stats = ds3d::test::read_json(work_ / "stats.json");
+  EXPECT_TRUE(stats.at("stopped_early").as_bool());
+  EXPECT_EQ(stats.at("stop_reason").as_string(), "SIGINT");
+}
+
+TEST_F(Ds3dSlamCli, WarnsAboutDuplicateStampsGapsAndUnmatchedDetections) {
+  // rgb.txt: frame 2's line repeated (one line dropped), and frames 4.. shifted by 1000 s.
+  std::vector<std::string> rgb;
+  std::vector<std::string> depth;
+  for (const char* list : {"rgb.txt", "depth.txt"}) {
+    auto& out = list[0] == 'r' ? rgb : depth;
+    std::size_t k = 0;
+    for (const auto& l : ds3d::test::read_lines(work_ / "seq" / list)) {
+      if (l.empty() || l[0] == '#') continue;
+      const double t = std::stod(l.substr(0, l.find(' '))) + (k++ >= 4 ? 1000.0 : 0.0);
+      out.push_back(std::to_string(t) + l.substr(l.find(' ')));
+    }
+  }
+  rgb.insert(rgb.begin() + 2, rgb[2].substr(0, rgb[2].find(' ')) + " " +
+                                  listed("rgb.txt", 1).lexically_relative(work_ / "seq").string());
+  for (const auto& [name, lines] : {std::pair{"rgb.txt", rgb}, std::pair{"depth.txt", depth}}) {
+    std::ofstream out(work_ / "seq" / name);
+    for (const auto& l : lines) out << l << "\n";
+  }
+  // Detections for the first two frames only.
+  {
+    std::ofstream det(work_ / "det.jsonl");
+    for (std::size_t i = 0; i < 2; ++i) {
+      det << "{\"timestamp\": " << rgb[i].substr(0, rgb[i].find(' ')) << ", \"detections\": []}\n";
+    }
+  }
+  auto r = ds3d::test::run_tool("ds3d-slam",
+                                args("--dynamic 'file:" + (work_ / "det.jsonl").string() + "'"));
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("rgb.txt: 1 line(s) dropped for a repeated timestamp"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("1 gap(s) between consecutive frames"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("has no line for 6 of 8 frames"), std::string::npos) << r.output;
+  const auto stats = ds3d::test::read_json(work_ / "stats.json");
+  const auto& w = stats.at("input_warnings");
+  EXPECT_EQ(w.at("duplicate_rgb_stamps").as_number(), 1.0);
+  EXPECT_EQ(w.at("large_gaps").as_number(), 1.0);
+  EXPECT_EQ(w.at("frames_without_detections").as_number(), 6.0);
+  EXPECT_FALSE(stats.at("stopped_early").as_bool());
+  // A detections file that matches no frame at all is an error naming it.
+  std::ofstream(work_ / "other.jsonl") << "{\"timestamp\": 5.0, \"detections\": []}\n";
+  r = ds3d::test::run_tool("ds3d-slam",
+                           args("--dynamic 'file:" + (work_ / "other.jsonl").string() + "'"));
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("detections file '" + (work_ / "other.jsonl").string() +
+                          "' matches none of the 8 frames"),
+            std::string::npos)
+      << r.output;
+}
+
+}  // namespace
