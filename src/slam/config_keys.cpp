@@ -62,6 +62,10 @@ std::vector<ConfigKey> frontend_keys() {
           [](auto& c) -> auto& { return c.frontend.odometry_fallback; },
           "frame-to-frame odometry when the map cannot be tracked (the frame becomes a keyframe)"),
       key(
+          "frontend.depth_edge_ratio", [](auto& c) -> auto& { return c.frontend.depth_edge_ratio; },
+          "keypoints on a depth step (far > (1 + ratio) x near) at a dynamic region are dropped (0 "
+          "= off)"),
+      key(
           "frontend.keyframe_ref_ratio",
           [](auto& c) -> auto& { return c.frontend.keyframe_ref_ratio; },
           "a keyframe is needed when the frame tracks fewer than"),

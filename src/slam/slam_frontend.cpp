@@ -54,6 +54,8 @@ void FrontendConfig::validate() const {
   DS3D_CHECK(reanchor_after_lost >= 0, f, ": reanchor_after_lost must be >= 0 (got ",
              reanchor_after_lost, ")");
   DS3D_CHECK(spare_features >= 0, f, ": spare_features must be >= 0 (got ", spare_features, ")");
+  DS3D_CHECK(std::isfinite(depth_edge_ratio) && depth_edge_ratio >= 0, f,
+             ": depth_edge_ratio must be finite and >= 0 (got ", depth_edge_ratio, ")");
   DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");
   DS3D_CHECK(std::isfinite(keyframe_ref_ratio) && keyframe_ref_ratio > 0 && keyframe_ref_ratio <= 1,
              f, ": keyframe_ref_ratio must be in (0, 1] (got ", keyframe_ref_ratio, ")");
@@ -214,6 +216,8 @@ void SlamFrontend::filter_dynamic(PreparedFrame& frame) {
   DS3D_CHECK(frame.dynamic.size() == frame.features.size(),
              "ds3d::slam::SlamFrontend: dynamic filter '", impl_->masker->name(), "' returned ",
              frame.dynamic.size(), " flags for ", frame.features.size(), " keypoints");
+  for (auto& d : frame.dynamic) d = d != 0 ? 1 : 0;
+  mark_depth_edges(frame, impl_->cfg.camera, impl_->extractor, impl_->cfg.depth_edge_ratio);
   refill_static(frame, impl_->cfg.camera, impl_->extractor);
   frame.times.filter_ms = ms_since(t0);
 }

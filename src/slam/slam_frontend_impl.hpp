@@ -3,6 +3,7 @@
 // Private to SlamFrontend: the map's types and SlamFrontend::Impl, shared by its sources.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -18,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "ds3d/slam/dynamic/boxes.hpp"
 #include "ds3d/slam/slam_frontend.hpp"
 
 namespace ds3d::slam::detail {
@@ -150,6 +152,33 @@ namespace ds3d::slam {
 /// source's boxes and pixel mask, farther than a grid cell from each removed keypoint) into
 /// pf.features as static keypoints, at most one per removed keypoint (static_refill.cpp).
 void refill_static(PreparedFrame& pf, const PinholeCamera& camera, const OrbExtractor& extractor);
+
+/// True if pixel `p` lies in one of `boxes` (edges included).
+inline bool in_any_box(const std::vector<ImageBox>& boxes, const cv::Point2f& p) {
+  return std::any_of(boxes.begin(), boxes.end(), [&](const ImageBox& b) {
+    return p.x >= b.x_min && p.x <= b.x_max && p.y >= b.y_min && p.y <= b.y_max;
+  });
+}
+
+/// True if pixel `p` (rounded, clamped to the image) is set in the CV_8UC1 mask `m`; false for
+/// an empty mask or another type.
+inline bool in_mask(const cv::Mat& m, const cv::Point2f& p) {
+  if (m.empty() || m.type() != CV_8UC1) return false;
+  const int x = std::clamp(static_cast<int>(std::lround(p.x)), 0, m.cols - 1);
+  const int y = std::clamp(static_cast<int>(std::lround(p.y)), 0, m.rows - 1);
+  return m.at<std::uint8_t>(y, x) != 0U;
+}
+
+/// PreparedFrame::dynamic value of a keypoint removed for lying on a depth edge (the dynamic
+/// filter's flags are 1).
+inline constexpr std::uint8_t kDepthEdgeFlag = 2;
+
+/// Marks with kDepthEdgeFlag the keypoints of `pf` not already removed that touch a dynamic
+/// region (one of 17 samples, the keypoint's pixel and 16 at 4 and 8 px × level scale, lies in
+/// a source box's image rectangle or on its pixel mask) and whose samples span a depth step:
+/// farthest valid depth > (1 + ratio) × nearest. Returns how many (depth_edges.cpp).
+int mark_depth_edges(PreparedFrame& pf, const PinholeCamera& camera, const OrbExtractor& extractor,
+                     double ratio);
 
 // The front-end's sources use the short names.
 using detail::BaJob;

@@ -56,19 +56,6 @@ class RemovedGrid {
   std::vector<std::vector<cv::Point2f>> bins_;
 };
 
-bool in_any_box(const std::vector<ImageBox>& boxes, const cv::Point2f& p) {
-  return std::any_of(boxes.begin(), boxes.end(), [&](const ImageBox& b) {
-    return p.x >= b.x_min && p.x <= b.x_max && p.y >= b.y_min && p.y <= b.y_max;
-  });
-}
-
-bool in_mask(const cv::Mat& m, const cv::Point2f& p) {
-  if (m.empty() || m.type() != CV_8UC1) return false;
-  const int x = std::clamp(static_cast<int>(std::lround(p.x)), 0, m.cols - 1);
-  const int y = std::clamp(static_cast<int>(std::lround(p.y)), 0, m.rows - 1);
-  return m.at<std::uint8_t>(y, x) != 0U;
-}
-
 }  // namespace
 
 void refill_static(PreparedFrame& pf, const PinholeCamera& camera, const OrbExtractor& extractor) {

@@ -335,7 +335,10 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
   res.keypoint_status.assign(pf.features.size(), KeypointStatus::kUnmatched);
   std::vector<std::size_t> kept;  // feature index of each FrameData entry
   for (std::size_t i = 0; i < pf.features.size(); ++i) {
-    if (!pf.dynamic.empty() && pf.dynamic[i] != 0) {
+    if (!pf.dynamic.empty() && pf.dynamic[i] == kDepthEdgeFlag) {
+      res.keypoint_status[i] = KeypointStatus::kDepthEdge;
+      ++res.num_depth_edge;
+    } else if (!pf.dynamic.empty() && pf.dynamic[i] != 0) {
       res.keypoint_status[i] = KeypointStatus::kDynamic;
       ++res.num_dynamic;
     } else {

@@ -5,14 +5,17 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
 
 #include "ds3d/errors.hpp"
-#include "ds3d/slam/synth.hpp"
 #include "ds3d/eval/trajectory_metrics.hpp"
+#include "ds3d/slam/synth.hpp"
 #include "support/synth_frames.hpp"
 
 namespace {
@@ -356,6 +359,61 @@ TEST(SlamFrontend, DynamicMaskerRemovesKeypointsBeforeTracking) {
       EXPECT_EQ(res.keypoint_status[i] == ds3d::slam::KeypointStatus::kDynamic, left);
     }
   }
+}
+
+// A source whose pixel mask is the left half of the image (the masker is the default one,
+// which flags nothing, so only the depth-edge rule removes keypoints).
+class LeftHalfMaskSource final : public ds3d::slam::DynamicObjectSource {
+ public:
+  ds3d::slam::DynamicObjects detect(const FrameInput& frame, const ds3d::PinholeCamera&) override {
+    ds3d::slam::DynamicObjects o;
+    o.pixel_mask = cv::Mat::zeros(frame.rgb.rows, frame.rgb.cols, CV_8UC1);
+    o.pixel_mask.colRange(0, frame.rgb.cols / 2).setTo(255);
+    return o;
+  }
+  [[nodiscard]] std::string name() const override { return "left-half"; }
+};
+
+TEST(SlamFrontend, DepthEdgeKeypointsAtDynamicRegionsAreRemoved) {
+  const FrontendConfig base = synth_config();
+  auto frames = render(ds3d::synth::Scenario::kStaticRoom, 4, 11);
+  for (auto& f : frames) {  // a flat "person" 0.5 m away covers the left half
+    f.depth = f.depth.clone();
+    f.depth.colRange(0, f.depth.cols / 2)
+        .setTo(static_cast<std::uint16_t>(std::lround(0.5 * base.camera.depth_scale)));
+  }
+  // Samples reach 8 px x the top level's scale: only keypoints that close to the border count.
+  const double top_scale = std::pow(base.orb.scale_factor, base.orb.num_levels - 1);
+  const auto band = static_cast<float>(8.0 * top_scale + 1.0);
+  const auto border = static_cast<float>(base.camera.width / 2);
+  for (const double ratio : {0.0, 0.25}) {
+    FrontendConfig cfg = base;
+    cfg.depth_edge_ratio = ratio;
+    SlamFrontend slam(cfg, std::make_shared<LeftHalfMaskSource>());
+    int edges = 0;
+    for (const auto& f : frames) {
+      const auto res = slam.track(f.rgb, f.depth, f.timestamp);
+      EXPECT_EQ(res.num_dynamic, 0);
+      int n = 0;
+      for (std::size_t i = 0; i < res.keypoints.size(); ++i) {
+        if (res.keypoint_status[i] != ds3d::slam::KeypointStatus::kDepthEdge) continue;
+        ++n;
+        EXPECT_LT(std::abs(res.keypoints[i].x - border), band) << res.keypoints[i].x;
+      }
+      EXPECT_EQ(n, res.num_depth_edge);
+      edges += n;
+    }
+    if (ratio == 0.0) {
+      EXPECT_EQ(edges, 0);
+    } else {
+      EXPECT_GT(edges, 0);
+    }
+  }
+  FrontendConfig bad = base;
+  bad.depth_edge_ratio = -0.1;
+  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+  bad.depth_edge_ratio = std::nan("");
+  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
 }
 
 TEST(SlamFrontend, MasksOfTheWrongSizeAreAnError) {

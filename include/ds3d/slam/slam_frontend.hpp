@@ -84,6 +84,13 @@ struct FrontendConfig {
   /// frame tracked so becomes a keyframe, so the map continues from it. Off: such frames are
   /// lost (and re-anchored after reanchor_after_lost frames).
   bool odometry_fallback = false;
+  /// Keypoints on an occluding contour at a dynamic region are removed from tracking and
+  /// mapping (0 = off), >= 0: those with a depth sample (at 4 and 8 px × their level's scale,
+  /// 16 directions, and their own pixel) in a source box's image rectangle or on its pixel mask
+  /// whose samples span a step, farthest depth > (1 + depth_edge_ratio) × nearest. Such a
+  /// corner is formed by the person's silhouette against the background: it moves with the
+  /// person, but its depth is the background's, so the dynamic filter keeps it as static.
+  double depth_edge_ratio = 0;
   double keyframe_ref_ratio = 0.75;  ///< a keyframe is needed when the frame tracks fewer than
                                      ///< this fraction of the reference keyframe's well-observed
                                      ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
@@ -123,7 +130,14 @@ enum class TrackState : std::uint8_t {
 [[nodiscard]] const char* to_string(TrackState s) noexcept;
 
 /// Per-keypoint status in TrackResult::keypoint_status.
-enum class KeypointStatus : std::uint8_t { kUnmatched = 0, kTracked = 1, kDynamic = 2 };
+/// What became of a keypoint: unmatched, tracked (an inlier), removed by the dynamic filter,
+/// or removed for lying on a depth edge (FrontendConfig::depth_edge_ratio).
+enum class KeypointStatus : std::uint8_t {
+  kUnmatched = 0,
+  kTracked = 1,
+  kDynamic = 2,
+  kDepthEdge = 3
+};
 
 /// Per-stage times of one frame [ms]: wall time, and the CPU time of the thread that ran the
 /// stage (CPU time does not grow when other processes compete for the cores).
@@ -150,7 +164,8 @@ struct TrackResult {
   int num_features = 0;  ///< keypoints extracted
   int num_dynamic = 0;   ///< keypoints the dynamic filter removed
   int num_refilled = 0;  ///< spare keypoints added in their place (FrontendConfig::spare_features)
-  int num_inliers = 0;   ///< map-point matches kept by the last pose optimisation
+  int num_depth_edge = 0;  ///< keypoints removed on depth edges (FrontendConfig::depth_edge_ratio)
+  int num_inliers = 0;     ///< map-point matches kept by the last pose optimisation
   std::vector<cv::Point2f> keypoints;           ///< raw pixel of every extracted keypoint
   std::vector<KeypointStatus> keypoint_status;  ///< one per keypoint
   StageTimes times;                             ///< stage timings
