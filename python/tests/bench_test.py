@@ -153,3 +153,11 @@ def test_module_entry_point():
     r = subprocess.run([sys.executable, "-m", "ds3d.bench", "--help"], capture_output=True, text=True,
                        env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)), check=False)
     assert r.returncode == 0 and "--scheduler" in r.stdout
+
+
+def test_version(capsys):
+    import ds3d
+    with pytest.raises(SystemExit) as e:
+        cli.parse_args(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.strip() == f"ds3d-bench {ds3d.__version__}"

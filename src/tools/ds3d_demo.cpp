@@ -11,6 +11,7 @@
 #include <string>
 
 #include "ds3d/slam/build_info.hpp"
+#include "ds3d/version.hpp"
 #include "ds3d_demo/demo.hpp"
 
 int main(int argc, char** argv) {
@@ -35,7 +36,11 @@ int main(int argc, char** argv) {
     } else if (a == "--list") {
       list_only = true;
     } else if (a == "-h" || a == "--help") {
-      std::cout << "usage: ds3d-demo [--out DIR] [--seed N] [--quick] [--list]\n";
+      std::cout << "usage: ds3d-demo [--out DIR] [--seed N] [--quick] [--list]\n"
+                   "       ds3d-demo --version\n";
+      return 0;
+    } else if (a == "--version") {
+      std::cout << "ds3d-demo " << ds3d::kVersion << "\n";
       return 0;
     } else {
       std::cerr << "ds3d-demo: unknown argument '" << a << "' (try --help)\n";

@@ -22,19 +22,23 @@
 #include "ds3d/eval/trajectory.hpp"
 #include "ds3d/eval/trajectory_metrics.hpp"
 #include "ds3d/slam/trajectory_plot.hpp"
+#include "ds3d/version.hpp"
 
 namespace {
 
 using ds3d::detail::json_number;
 
+constexpr const char* kUsage =
+    "usage: ds3d-eval ate GT EST [--max-difference 0.02] [--offset 0] [--scale 1]\n"
+    "                 [--align se3|sim3|none] [--window SECONDS] [--plot out.png]\n"
+    "                 [--json]\n"
+    "       ds3d-eval rpe GT EST [--delta 1] [--delta-unit s|f|m|rad|deg] [--offset 0]\n"
+    "                 [--scale 1] [--all-pairs] [--max-pairs 10000] [--evo] [--seed 1]\n"
+    "                 [--json]\n"
+    "       ds3d-eval --help | --version\n";
+
 int usage(const std::string& msg) {
-  std::cerr << "ds3d-eval: " << msg << "\n"
-            << "usage: ds3d-eval ate GT EST [--max-difference 0.02] [--offset 0] [--scale 1]\n"
-            << "                 [--align se3|sim3|none] [--window SECONDS] [--plot out.png]\n"
-            << "                 [--json]\n"
-            << "       ds3d-eval rpe GT EST [--delta 1] [--delta-unit s|f|m|rad|deg] [--offset 0]\n"
-            << "                 [--scale 1] [--all-pairs] [--max-pairs 10000] [--evo] [--seed 1]\n"
-            << "                 [--json]\n";
+  std::cerr << "ds3d-eval: " << msg << "\n" << kUsage;
   return 2;
 }
 
@@ -137,6 +141,14 @@ ds3d::Trajectory read_checked(const std::string& path, bool keep_zero_quaternion
 
 int main(int argc, char** argv) {
   try {
+    if (argc == 2 && (std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help")) {
+      std::cout << kUsage;
+      return 0;
+    }
+    if (argc == 2 && std::string(argv[1]) == "--version") {
+      std::cout << "ds3d-eval " << ds3d::kVersion << "\n";
+      return 0;
+    }
     if (argc < 4) return usage("expected a command and two files");
     const std::string cmd = argv[1];
     if (cmd != "ate" && cmd != "rpe") return usage("unknown command '" + cmd + "'");

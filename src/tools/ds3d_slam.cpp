@@ -40,6 +40,7 @@
 #include "ds3d/slam/slam_frontend.hpp"
 #pragma GCC diagnostic pop
 #include "ds3d/htx/weights_io.hpp"
+#include "ds3d/version.hpp"
 #include "ds3d_slam/run_guard.hpp"
 
 namespace {
@@ -52,6 +53,7 @@ constexpr const char* kUsage =
     "                 [--keyframes kf.txt] [--map map.ply] [--config FILE] [--set KEY=VALUE]...\n"
     "                 [--quiet]\n"
     "       ds3d-slam [--config FILE] [--set KEY=VALUE]... --dump-config\n"
+    "       ds3d-slam --help | --version\n"
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
     "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present,\n"
     "else the TUM/Bonn preset its folder name selects, else tum_ros (with a warning).\n"
@@ -67,8 +69,8 @@ constexpr const char* kUsage =
     "  inside it is significant, and tracks it (docs/dynamic.md).\n"
     "--weights: HTx weights file (key dynamic.weights; default models/htx_lite_fast.safetensors\n"
     "  of the source tree, else <prefix>/share/ds3d/models/).\n"
-    "--viz: one PNG per frame: tracked (green), dynamic (red), other (grey) keypoints, boxes "
-    "(blue).\n"
+    "--viz: one PNG per frame: tracked (green), dynamic (red), depth-edge (orange), other (grey)\n"
+    "  keypoints, boxes (blue).\n"
     "--config FILE: keys from a YAML or JSON file (nested `htx: {min_score: 0.4}` or dotted\n"
     "  `htx.min_score: 0.4`); --set KEY=VALUE overrides one key (repeatable; after --config,\n"
     "  in command-line order with --dynamic, --gate and --weights). --dump-config prints every\n"
@@ -129,6 +131,9 @@ Args parse(int argc, char** argv) {
     };
     if (s == "-h" || s == "--help") {
       std::cout << kUsage;
+      std::exit(0);
+    } else if (s == "--version") {
+      std::cout << "ds3d-slam " << ds3d::kVersion << "\n";
       std::exit(0);
     } else if (s == "--camera") {
       a.camera = value();
@@ -242,6 +247,7 @@ void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
     cv::Scalar c(128, 128, 128);
     if (r.keypoint_status[i] == ds3d::slam::KeypointStatus::kTracked) c = cv::Scalar(0, 200, 0);
     if (r.keypoint_status[i] == ds3d::slam::KeypointStatus::kDynamic) c = cv::Scalar(0, 0, 255);
+    if (r.keypoint_status[i] == ds3d::slam::KeypointStatus::kDepthEdge) c = cv::Scalar(0, 200, 255);
     cv::circle(img, r.keypoints[i], 3, c, 1, cv::LINE_AA);
   }
   std::ostringstream label;
@@ -260,16 +266,17 @@ struct FrameRecord {
   bool tracked = false;
   ds3d::slam::TrackState state = ds3d::slam::TrackState::kNotInitialized;
   ds3d::slam::StageTimes times;
-  int features = 0;  // TrackResult::num_features
-  int dynamic = 0;   // num_dynamic
-  int refilled = 0;  // num_refilled
-  int inliers = 0;   // num_inliers
+  int features = 0;    // TrackResult::num_features
+  int dynamic = 0;     // num_dynamic
+  int refilled = 0;    // num_refilled
+  int inliers = 0;     // num_inliers
+  int depth_edge = 0;  // num_depth_edge
   bool keyframe = false;
   bool odometry = false;
 
   static FrameRecord of(const ds3d::slam::TrackResult& r) {
-    return {r.tracked, r.state,       r.times,    r.num_features, r.num_dynamic,
-            r.num_refilled, r.num_inliers, r.keyframe, r.odometry};
+    return {r.tracked,      r.state,       r.times,          r.num_features, r.num_dynamic,
+            r.num_refilled, r.num_inliers, r.num_depth_edge, r.keyframe,     r.odometry};
   }
 };
 
@@ -304,6 +311,7 @@ void write_per_frame(std::ostream& js, const std::vector<FrameRecord>& results) 
       {"dynamic", [](const R& r) { return r.dynamic; }},
       {"refilled", [](const R& r) { return r.refilled; }},
       {"inliers", [](const R& r) { return r.inliers; }},
+      {"depth_edge", [](const R& r) { return r.depth_edge; }},
       {"keyframe", [](const R& r) { return r.keyframe ? 1 : 0; }},
       {"odometry", [](const R& r) { return r.odometry ? 1 : 0; }}};
   for (const auto& [name, get] : columns) {
@@ -414,7 +422,7 @@ void write_outputs(const Args& a, const ds3d::slam::SlamFrontend& slam, const st
     ds3d::write_tum_trajectory(a.keyframes, ds3d::slam::to_trajectory(slam.keyframe_trajectory()));
   }
   if (!a.map.empty()) slam.write_map_ply(a.map);
-  if (!a.stats.empty()) ds3d::detail::write_file_atomically(a.stats, stats, "ds3d-slam: --stats");
+  if (!a.stats.empty()) ds3d::detail::write_file_atomically(a.stats, stats, "--stats");
 }
 
 // A warning when the htx weights carry no checksum (older exports); nothing to check then.

@@ -3,31 +3,51 @@
 // ds3d-synth OUT_DIR --scenario NAME --frames N --seed S [--humans K] [--fps F] [--parts]
 //            [--no-noise] [--room X,Y,Z] [--furniture N] [--detection-errors MISS,FALSE]
 //            [--overwrite]: writes a synthetic dynamic RGB-D sequence in TUM layout.
+#include <charconv>
+#include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <exception>
 #include <iostream>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "ds3d/slam/synth.hpp"
+#include "ds3d/version.hpp"
 
 namespace {
 
+void print_usage(std::ostream& os) {
+  os << "usage: ds3d-synth OUT_DIR [--scenario NAME] [--frames N] [--seed S] [--humans K]\n"
+     << "                  [--fps F] [--parts] [--no-noise] [--room X,Y,Z] [--furniture N]\n"
+     << "                  [--detection-errors MISS,FALSE] [--overwrite]\n"
+     << "       ds3d-synth --help | --version\n"
+     << "scenarios: static_room walking_static walking_xyz walking_halfsphere walking_rpy\n"
+     << "           sitting_static sitting_xyz crowd_cross crowd_board crowd_start\n"
+     << "           crowd_handheld\n"
+     << "--detection-errors: also write detections_noisy.jsonl, person boxes missed with\n"
+     << "           probability MISS per frame (in runs) and a false box with probability\n"
+     << "           FALSE per frame\n"
+     << "--overwrite: replace a non-empty OUT_DIR (refused otherwise); the sequence is\n"
+     << "           written to a hidden sibling folder and renamed into place at the end\n";
+}
+
 int usage(const char* msg) {
-  std::cerr << "ds3d-synth: " << msg << "\n"
-            << "usage: ds3d-synth OUT_DIR [--scenario NAME] [--frames N] [--seed S] [--humans K]\n"
-            << "                  [--fps F] [--parts] [--no-noise] [--room X,Y,Z] [--furniture N]\n"
-            << "                  [--detection-errors MISS,FALSE] [--overwrite]\n"
-            << "scenarios: static_room walking_static walking_xyz walking_halfsphere walking_rpy\n"
-            << "           sitting_static sitting_xyz crowd_cross crowd_board crowd_start\n"
-            << "           crowd_handheld\n"
-            << "--detection-errors: also write detections_noisy.jsonl, person boxes missed with\n"
-            << "           probability MISS per frame (in runs) and a false box with probability\n"
-            << "           FALSE per frame\n"
-            << "--overwrite: replace a non-empty OUT_DIR (refused otherwise); the sequence is\n"
-            << "           written to a hidden sibling folder and renamed into place at the end\n";
+  std::cerr << "ds3d-synth: " << msg << "\n";
+  print_usage(std::cerr);
   return 2;
+}
+
+// One finite number; the whole of `v` must be used.
+double parse_double(const std::string& flag, const std::string& v) {
+  double x = 0;
+  const auto r = std::from_chars(v.data(), v.data() + v.size(), x);
+  if (v.empty() || r.ec != std::errc() || r.ptr != v.data() + v.size() || !std::isfinite(x)) {
+    throw std::invalid_argument(flag + ": expected a finite number, got '" + v + "'");
+  }
+  return x;
 }
 
 // "A,B,..." as n numbers.
@@ -39,19 +59,22 @@ std::vector<double> parse_list(const std::string& flag, const std::string& v, in
     if (end == std::string::npos)
       throw std::invalid_argument(flag + ": expected " + std::to_string(n) +
                                   " comma-separated numbers, got '" + v + "'");
-    std::size_t used = 0;
-    const std::string part = v.substr(pos, end - pos);
-    out.push_back(std::stod(part, &used));
-    if (used != part.size()) throw std::invalid_argument(flag + ": not a number: '" + part + "'");
+    out.push_back(parse_double(flag, v.substr(pos, end - pos)));
     pos = end + 1;
   }
   return out;
 }
 
-long parse_int(const std::string& flag, const std::string& v) {
-  std::size_t used = 0;
-  const long x = std::stol(v, &used);
-  if (used != v.size()) throw std::invalid_argument(flag + ": not an integer: '" + v + "'");
+// An integer of type T (range checked: 2^40 for an int is an error, not a wrapped value).
+template <class T>
+T parse_int(const std::string& flag, const std::string& v) {
+  T x = 0;
+  const auto r = std::from_chars(v.data(), v.data() + v.size(), x);
+  if (v.empty() || r.ec != std::errc() || r.ptr != v.data() + v.size()) {
+    throw std::invalid_argument(
+        flag + ": expected an integer in [" + std::to_string(std::numeric_limits<T>::min()) + ", " +
+        std::to_string(std::numeric_limits<T>::max()) + "], got '" + v + "'");
+  }
   return x;
 }
 
@@ -71,13 +94,13 @@ int main(int argc, char** argv) {
       if (a == "--scenario") {
         opt.scenario = ds3d::synth::parse_scenario(value());
       } else if (a == "--frames") {
-        opt.num_frames = static_cast<int>(parse_int(a, value()));
+        opt.num_frames = parse_int<int>(a, value());
       } else if (a == "--seed") {
-        opt.seed = static_cast<std::uint64_t>(parse_int(a, value()));
+        opt.seed = parse_int<std::uint64_t>(a, value());
       } else if (a == "--humans") {
-        opt.num_humans = static_cast<int>(parse_int(a, value()));
+        opt.num_humans = parse_int<int>(a, value());
       } else if (a == "--fps") {
-        opt.fps = std::stod(value());
+        opt.fps = parse_double(a, value());
       } else if (a == "--parts") {
         opt.write_parts = true;
       } else if (a == "--room") {
@@ -88,13 +111,16 @@ int main(int argc, char** argv) {
         opt.detection_miss = mf[0];
         opt.detection_false = mf[1];
       } else if (a == "--furniture") {
-        opt.extra_furniture = static_cast<int>(parse_int(a, value()));
+        opt.extra_furniture = parse_int<int>(a, value());
       } else if (a == "--overwrite") {
         overwrite = true;
       } else if (a == "--no-noise") {
         opt.depth_noise = false;
+      } else if (a == "--version") {
+        std::cout << "ds3d-synth " << ds3d::kVersion << "\n";
+        return 0;
       } else if (a == "-h" || a == "--help") {
-        usage("help");
+        print_usage(std::cout);
         return 0;
       } else if (!a.empty() && a[0] == '-') {
         return usage(("unknown option " + a).c_str());

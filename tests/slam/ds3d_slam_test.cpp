@@ -23,6 +23,7 @@
 
 #include "ds3d/eval/trajectory.hpp"
 #include "ds3d/slam/synth.hpp"
+#include "ds3d/version.hpp"
 #include "support/cli.hpp"
 #include "support/files.hpp"
 
@@ -248,6 +249,20 @@ TEST_F(Ds3dSlamCli, WarnsAboutDuplicateStampsGapsAndUnmatchedDetections) {
                           "' matches none of the 8 frames"),
             std::string::npos)
       << r.output;
+}
+
+// Every tool answers --version (its name and the library version, exit 0) and --help (its
+// usage on stdout, exit 0).
+TEST(Tools, EveryToolAnswersVersionAndHelp) {
+  for (const std::string tool : {"ds3d-slam", "ds3d-eval", "ds3d-synth", "ds3d-demo"}) {
+    if (!fs::exists(ds3d::test::tool_path(tool))) continue;
+    auto r = ds3d::test::run_tool(tool, "--version");
+    EXPECT_EQ(r.code, 0) << tool << ": " << r.output;
+    EXPECT_EQ(r.output, tool + " " + ds3d::kVersion + "\n");
+    r = ds3d::test::run_tool(tool, "--help");
+    EXPECT_EQ(r.code, 0) << tool << ": " << r.output;
+    EXPECT_NE(r.output.find("usage: " + tool), std::string::npos) << tool << ": " << r.output;
+  }
 }
 
 }  // namespace

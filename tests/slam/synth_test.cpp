@@ -362,6 +362,16 @@ TEST(Synth, RefusesANonEmptyFolderUnlessOverwrite) {
     r = ds3d::test::run_tool("ds3d-synth", "'" + dir.string() + "' --frames 1 --overwrite");
     EXPECT_EQ(r.code, 0) << r.output;
     EXPECT_EQ(ds3d::RgbdDataset::open(dir).size(), 1U);
+    // Integers out of their type's range and non-numbers are errors naming the option, before
+    // anything is written (2^40 frames used to wrap to 0).
+    for (const std::string bad : {"--frames 1099511627776", "--seed -1", "--humans 1x", "--fps inf",
+                                  "--room 1,2,nan", "--furniture 99999999999"}) {
+      r = ds3d::test::run_tool("ds3d-synth", "'" + dir.string() + "' --overwrite " + bad);
+      EXPECT_EQ(r.code, 1) << bad << ": " << r.output;
+      EXPECT_NE(r.output.find(bad.substr(0, bad.find(' ')) + ": expected"), std::string::npos)
+          << r.output;
+      EXPECT_EQ(ds3d::RgbdDataset::open(dir).size(), 1U) << bad;
+    }
   }
   fs::remove_all(root);
 }

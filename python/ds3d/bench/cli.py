@@ -99,9 +99,15 @@ def plan(suite, out, tools):
     return preps, cells
 
 
+def _version():
+    from .. import __version__
+    return __version__
+
+
 def parse_args(argv):
     p = argparse.ArgumentParser(prog="ds3d-bench", description=__doc__)
     p.add_argument("suite", help="suite file (.yaml, .yml or .json; docs/bench.md)")
+    p.add_argument("--version", action="version", version=f"ds3d-bench {_version()}")
     p.add_argument("--out", help="results folder (default: the suite's out:, else build/bench/<suite name>)")
     p.add_argument("--jobs", type=int, default=0,
                    help="local worker processes (default: cores / threads_per_run of the suite)")
