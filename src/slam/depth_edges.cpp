@@ -72,7 +72,6 @@ int mark_depth_edges(PreparedFrame& pf, const PinholeCamera& camera, const OrbEx
   const cv::Mat& mask = pf.objects.pixel_mask;
   if (boxes.empty() && mask.empty()) return 0;
   const std::size_t n = pf.features.size();
-  if (pf.dynamic.empty()) pf.dynamic.assign(n, 0);
   int marked = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (pf.dynamic[i] != 0) continue;

@@ -12,19 +12,11 @@
 #include <vector>
 
 #include "ds3d/cluster/hdbscan_predict.hpp"
+#include "numpy_util.hpp"
 
 namespace py = pybind11;
 
-namespace {
-
-template <class T>
-py::array_t<T> to_numpy(const std::vector<T>& v) {
-  py::array_t<T> a(static_cast<py::ssize_t>(v.size()));
-  std::copy(v.begin(), v.end(), a.mutable_data());
-  return a;
-}
-
-}  // namespace
+using ds3d::py_util::to_numpy;
 
 void bind_hdbscan_predict(py::module_& m) {
   using ds3d::HdbscanPredictor;
