@@ -69,4 +69,4 @@ def test_run_slam_takes_the_config(tmp_path):
     with pytest.raises(TypeError, match="draws"):
         ds3d.run_slam(tmp_path, dynamic="htx", draws=2)
     with pytest.raises(ValueError, match="gate"):
-        ds3d.run_slam(tmp_path, gate="motion")
+        ds3d.run_slam(tmp_path, dynamic="none", gate="motion")

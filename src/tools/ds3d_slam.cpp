@@ -57,7 +57,7 @@ constexpr const char* kUsage =
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
     "pose per frame in TUM format. With no --camera, DATASET_DIR/camera.txt is used if present,\n"
     "else the TUM/Bonn preset its folder name selects, else tum_ros (with a warning).\n"
-    "--dynamic: where boxes of moving objects come from (key dynamic.source, default none):\n"
+    "--dynamic: where boxes of moving objects come from (key dynamic.source, default geometric):\n"
     "  none (keep every keypoint), geometric (multi-view motion, no learned weights), htx (the\n"
     "  HTx-lite 3-D detector on the preprocessed depth), file:PATH (JSON lines, see\n"
     "  detections.hpp), mask:DIR (one mask image per frame, named by its timestamp, non-zero =\n"

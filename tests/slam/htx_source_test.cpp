@@ -23,11 +23,11 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "ds3d/errors.hpp"
+#include "ds3d/htx/sparse_detector.hpp"
 #include "ds3d/slam/config.hpp"
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
-#include "ds3d/errors.hpp"
 #include "ds3d/slam/dynamic/geometric_motion.hpp"
-#include "ds3d/htx/sparse_detector.hpp"
 #include "ds3d/slam/synth.hpp"
 #include "support/cli.hpp"
 #include "support/files.hpp"
@@ -1012,7 +1012,7 @@ TEST(Ds3dSlamCli, HtxOptions) {
   EXPECT_EQ(run_cli(ds + " --dynamic htx --set htx.report_floor=maybe").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic htx --set htx.min_score").code, 2);
   EXPECT_EQ(run_cli(ds + " --dynamic htx --gate sometimes").code, 2);
-  EXPECT_EQ(run_cli(ds + " --gate motion").code, 2);  // nothing to gate
+  EXPECT_EQ(run_cli(ds + " --dynamic none --gate motion").code, 2);  // nothing to gate
   EXPECT_EQ(run_cli(ds + " --dynamic 'htx&geometric'").code, 2);  // the old, shell-unsafe grammar
   r = run_cli(ds + " --set htx.no_such_key=1");
   EXPECT_EQ(r.code, 2);
@@ -1022,12 +1022,13 @@ TEST(Ds3dSlamCli, HtxOptions) {
   EXPECT_NE(r.output.find("nothing"), std::string::npos) << r.output;
   // a run with the fixture weights, every 2nd frame, and the composite
   for (const std::string spec : {"htx", "htx+geometric"}) {
-    r = run_cli(ds + " --dynamic " + spec + " --weights '" + fixture_weights().string() +
-                "' --set htx.detect_every=2 --set htx.min_score=0 --set htx.report_floor=true" +
-                " --quiet --set pipeline.threaded=false --set frontend.mapping_thread=false" +
-                (spec == "htx" ? " --set htx.segment=false" : " --set htx.segment_outside_boxes=0") +
-                " --out '" +
-                (dir / "traj.txt").string() + "' --stats '" + (dir / "stats.json").string() + "'");
+    r = run_cli(
+        ds + " --dynamic " + spec + " --weights '" + fixture_weights().string() +
+        "' --set htx.detect_every=2 --set htx.min_score=0 --set htx.report_floor=true" +
+        " --quiet --set pipeline.threaded=false --set frontend.mapping_thread=false" +
+        (spec == "htx" ? " --set htx.segment=false" : " --set htx.segment_outside_boxes=0") +
+        " --out '" + (dir / "traj.txt").string() + "' --stats '" + (dir / "stats.json").string() +
+        "'");
     EXPECT_EQ(r.code, 0) << spec << ": " << r.output;
     const auto stats = ds3d::test::read_json(dir / "stats.json");
     EXPECT_EQ(stats.at("dynamic").as_string(), spec);

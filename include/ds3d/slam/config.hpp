@@ -47,9 +47,10 @@ enum class Gate : std::uint8_t {
 /// Everything a SLAM run is configured by, except the camera (from the dataset or `--camera`).
 /// Fields are set directly or by key (set(), config_keys()); validate() checks them all.
 struct SlamConfig {
-  std::string dynamic =
-      "none";               ///< source: none, geometric, htx, file:PATH or A+B (key dynamic.source)
-  Gate gate = Gate::kNone;  ///< gate by the geometric source (key dynamic.gate)
+  /// Source: none, geometric, htx, file:PATH, mask:DIR or A+B (key dynamic.source). The default,
+  /// geometric, needs no weights and is real time on 2 cores (README, "Which --dynamic to use").
+  std::string dynamic = "geometric";
+  Gate gate = Gate::kNone;            ///< gate by the geometric source (key dynamic.gate)
   std::filesystem::path weights{};    ///< HTx weights; empty = find_default_weights()
   FrontendConfig frontend{};          ///< tracking, mapping, keyframes (its camera is not a key)
   HtxSourceParams htx{};              ///< the htx source

@@ -189,7 +189,7 @@ def _set_list(value, where):
 
 def config_label(c):
     """A readable default name in the README's style: 'htx --gate evidence --set k=v'."""
-    parts = [c.get("dynamic", "none")]
+    parts = [c.get("dynamic", "default")]
     if c.get("gate"):
         parts.append(f"--gate {c['gate']}")
     if c.get("config"):
