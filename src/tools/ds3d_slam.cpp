@@ -15,9 +15,7 @@
 #include <fstream>
 #include <iostream>
 #include <limits>
-#include <map>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -41,6 +39,7 @@
 #pragma GCC diagnostic pop
 #include "ds3d/htx/weights_io.hpp"
 #include "ds3d/version.hpp"
+#include "ds3d_slam/dynamic_out.hpp"
 #include "ds3d_slam/run_guard.hpp"
 
 namespace {
@@ -48,8 +47,9 @@ namespace {
 constexpr const char* kUsage =
     "usage: ds3d-slam DATASET_DIR [--camera tum1|tum2|tum3|tum_ros|bonn|FILE] [--out traj.txt]\n"
     "                 [--dynamic none|geometric|htx|file:PATH|mask:DIR|A+B]\n"
-    "                 [--gate none|motion|evidence] [--weights PATH] [--max-frames N]\n"
-    "                 [--stats stats.json] [--viz OUT_DIR]\n"
+    "                 [--gate none|motion|evidence] [--weights PATH] [--start-frame N]\n"
+    "                 [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
+    "                 [--dynamic-out DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--config FILE] [--set KEY=VALUE]...\n"
     "                 [--quiet]\n"
     "       ds3d-slam [--config FILE] [--set KEY=VALUE]... --dump-config\n"
@@ -69,8 +69,14 @@ constexpr const char* kUsage =
     "  inside it is significant, and tracks it (docs/dynamic.md).\n"
     "--weights: HTx weights file (key dynamic.weights; default models/htx_lite_fast.safetensors\n"
     "  of the source tree, else <prefix>/share/ds3d/models/).\n"
+    "--start-frame N: begin at frame N (0-based, of the associated rgb/depth pairs); --max-frames\n"
+    "  then counts from there.\n"
     "--viz: one PNG per frame: tracked (green), dynamic (red), depth-edge (orange), other (grey)\n"
     "  keypoints, boxes (blue).\n"
+    "--dynamic-out DIR: per frame, DIR/<timestamp>.png (8-bit, 255 = in a box the dynamic filter\n"
+    "  processed or on the source's pixel mask) and one line of DIR/keypoints.jsonl (timestamp,\n"
+    "  frame, mask, u, v, status: unmatched|tracked|dynamic|depth_edge per keypoint); see\n"
+    "  docs/slam.md.\n"
     "--config FILE: keys from a YAML or JSON file (nested `htx: {min_score: 0.4}` or dotted\n"
     "  `htx.min_score: 0.4`); --set KEY=VALUE overrides one key (repeatable; after --config,\n"
     "  in command-line order with --dynamic, --gate and --weights). --dump-config prints every\n"
@@ -81,9 +87,11 @@ struct Args {
   std::string camera;
   std::filesystem::path out = "trajectory.txt";
   ds3d::slam::SlamConfig config;
+  std::size_t start_frame = 0;
   std::size_t max_frames = 0;
   std::filesystem::path stats;
   std::filesystem::path viz;
+  std::filesystem::path dynamic_out;
   std::filesystem::path keyframes;
   std::filesystem::path map;
   bool dump_config = false;
@@ -146,12 +154,16 @@ Args parse(int argc, char** argv) {
     } else if (s == "--weights") {
       sets.emplace_back("dynamic.weights", value());
       if (sets.back().second.empty()) usage_error("--weights needs a non-empty path");
+    } else if (s == "--start-frame") {
+      a.start_frame = parse_count(s, value());
     } else if (s == "--max-frames") {
       a.max_frames = parse_count(s, value());
     } else if (s == "--stats") {
       a.stats = value();
     } else if (s == "--viz") {
       a.viz = value();
+    } else if (s == "--dynamic-out") {
+      a.dynamic_out = value();
     } else if (s == "--keyframes") {
       a.keyframes = value();
     } else if (s == "--map") {
@@ -199,42 +211,6 @@ Percentiles percentiles(std::vector<double> v) {
   };
   return {at(0.5), at(0.95)};
 }
-
-// The HDBSCAN masker, remembering each frame's boxes for --viz (the masker runs in the filter
-// stage's thread, the drawing on the caller's).
-class RecordingMasker final : public ds3d::slam::DynamicFeatureMasker {
- public:
-  explicit RecordingMasker(const ds3d::DynamicFilterParams& params) : inner_(params) {}
-  std::vector<std::uint8_t> mask(const ds3d::slam::FrameInput& frame,
-                                 const ds3d::PinholeCamera& camera,
-                                 const ds3d::slam::OrbFeatures& features,
-                                 const ds3d::slam::DynamicObjects& objects) override {
-    auto m = inner_.mask(frame, camera, features, objects);
-    if (record_) {
-      std::vector<ds3d::ImageBox> boxes;
-      for (const auto& b : inner_.last_result().boxes) boxes.push_back(b.box);
-      const std::lock_guard<std::mutex> lock(mutex_);
-      boxes_[frame.index] = std::move(boxes);
-    }
-    return m;
-  }
-  [[nodiscard]] std::string name() const override { return inner_.name(); }
-  void set_record(bool on) { record_ = on; }
-  std::vector<ds3d::ImageBox> take(std::size_t index) {
-    const std::lock_guard<std::mutex> lock(mutex_);
-    const auto it = boxes_.find(index);
-    if (it == boxes_.end()) return {};
-    auto out = std::move(it->second);
-    boxes_.erase(it);
-    return out;
-  }
-
- private:
-  ds3d::slam::HdbscanMasker inner_;
-  bool record_ = false;
-  std::mutex mutex_;
-  std::map<std::size_t, std::vector<ds3d::ImageBox>> boxes_;
-};
 
 void draw_viz(const std::filesystem::path& dir, const ds3d::RgbdDataset& ds,
               const ds3d::slam::TrackResult& r, const std::vector<ds3d::ImageBox>& boxes) {
@@ -440,7 +416,7 @@ int run(const Args& a) {
   // Outputs first: a missing or read-only folder fails before any weights or image is read.
   ds3d_slam_tool::check_output_paths(
       {{"--out", a.out}, {"--stats", a.stats}, {"--keyframes", a.keyframes}, {"--map", a.map}},
-      a.viz);
+      {{"--viz", a.viz}, {"--dynamic-out", a.dynamic_out}});
   // The source next: a bad --dynamic or --weights fails before any image is read.
   std::shared_ptr<ds3d::slam::DynamicObjectSource> source;
   try {
@@ -457,18 +433,27 @@ int run(const Args& a) {
   const auto ds = ds3d::RgbdDataset::open(a.dataset, dopt);
   DS3D_CHECK_AS(ds3d::IoError, ds.size() > 0, "no associated rgb/depth pairs in ",
                 a.dataset.string());
-  const std::size_t total = a.max_frames == 0 ? ds.size() : std::min(a.max_frames, ds.size());
-  auto input_warnings = ds3d_slam_tool::check_inputs(ds, total, c);
+  if (a.start_frame >= ds.size()) {
+    usage_error("--start-frame " + std::to_string(a.start_frame) + " is past the last frame: " +
+                a.dataset.string() + " has " + std::to_string(ds.size()) +
+                " associated frames (0-based, so at most " + std::to_string(ds.size() - 1) + ")");
+  }
+  const std::size_t left = ds.size() - a.start_frame;
+  const std::size_t total = a.max_frames == 0 ? left : std::min(a.max_frames, left);
+  const std::size_t end = a.start_frame + total;  // one past the last frame run
+  auto input_warnings = ds3d_slam_tool::check_inputs(ds, a.start_frame, total, c);
   input_warnings.weights_without_checksum = warn_unchecked_weights(c);
   cv::setNumThreads(c.cv_threads);
 
   ds3d::slam::FrontendConfig cfg = c.frontend;
   cfg.camera = ds.camera();
-  std::shared_ptr<RecordingMasker> masker;
+  std::shared_ptr<ds3d_slam_tool::RecordingMasker> masker;
   if (c.dynamic != "none") {
-    masker = std::make_shared<RecordingMasker>(c.filter);
-    masker->set_record(!a.viz.empty());
+    masker = std::make_shared<ds3d_slam_tool::RecordingMasker>(c.filter);
+    masker->set_record(!a.viz.empty(), !a.dynamic_out.empty());
   }
+  std::optional<ds3d_slam_tool::DynamicOutWriter> dynamic_out;
+  if (!a.dynamic_out.empty()) dynamic_out.emplace(a.dynamic_out, ds);
   ds3d::slam::SlamFrontend slam(cfg, source, masker);
 
   const bool tty = !a.quiet && isatty(fileno(stderr)) != 0;
@@ -483,8 +468,10 @@ int run(const Args& a) {
     last = now;
     ++done;
     results.push_back(FrameRecord::of(r));
-    if (!a.viz.empty()) {
-      draw_viz(a.viz, ds, r, masker ? masker->take(r.index) : std::vector<ds3d::ImageBox>{});
+    if (!a.viz.empty() || dynamic_out) {
+      const auto rec = masker ? masker->take(r.index) : ds3d_slam_tool::DynamicRecord{};
+      if (!a.viz.empty()) draw_viz(a.viz, ds, r, rec.boxes);
+      if (dynamic_out) dynamic_out->write(r, rec.mask);
     }
     if (tty && (done % 5 == 0 || done == total)) {
       const double sec = std::chrono::duration<double>(now - t_start).count();
@@ -501,9 +488,9 @@ int run(const Args& a) {
   // Frames are read here (not by run_dataset) so that an unreadable frame or a stop signal ends
   // the input: the frames read so far are still tracked, finished and written.
   StopInfo stop;
-  std::size_t next_index = 0;
+  std::size_t next_index = a.start_frame;
   const auto next = [&]() -> std::optional<ds3d::slam::FrameInput> {
-    if (next_index >= total || ds3d_slam_tool::stop_signal() != 0) return std::nullopt;
+    if (next_index >= end || ds3d_slam_tool::stop_signal() != 0) return std::nullopt;
     ds3d::RgbdFrame f;
     try {
       f = ds.frame(next_index);
@@ -530,7 +517,7 @@ int run(const Args& a) {
     stop.message = e.what();
   }
   if (tty) std::fprintf(stderr, "\n");
-  if (stop.reason.empty() && ds3d_slam_tool::stop_signal() != 0 && next_index < total) {
+  if (stop.reason.empty() && ds3d_slam_tool::stop_signal() != 0 && next_index < end) {
     stop.signal = ds3d_slam_tool::stop_signal();
     stop.reason = ds3d_slam_tool::signal_name(stop.signal);
   }

@@ -10,7 +10,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <csignal>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -21,7 +23,9 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "ds3d/detail/json.hpp"
 #include "ds3d/eval/trajectory.hpp"
+#include "ds3d/slam/dataset.hpp"
 #include "ds3d/slam/synth.hpp"
 #include "ds3d/version.hpp"
 #include "support/cli.hpp"
@@ -249,6 +253,208 @@ TEST_F(Ds3dSlamCli, WarnsAboutDuplicateStampsGapsAndUnmatchedDetections) {
                           "' matches none of the 8 frames"),
             std::string::npos)
       << r.output;
+}
+
+// A 32-frame synthetic sequence for the options that pick frames, generated once.
+const fs::path& long_sequence() {
+  static const fs::path dir = [] {
+    const fs::path d = sequence().parent_path() / "long";
+    ds3d::synth::SynthOptions o;
+    o.scenario = ds3d::synth::Scenario::kStaticRoom;
+    o.num_frames = 32;
+    o.seed = 5;
+    o.camera = ds3d::PinholeCamera{.fx = 262.5,
+                                   .fy = 262.5,
+                                   .cx = 159.5,
+                                   .cy = 119.5,
+                                   .width = 320,
+                                   .height = 240};  // fast to render and track
+    (void)ds3d::synth::generate_sequence(d, o);
+    return d;
+  }();
+  return dir;
+}
+
+// The associated frame stamps of a sequence, in order.
+std::vector<double> frame_stamps(const fs::path& seq) {
+  std::vector<double> out;
+  const auto ds = ds3d::RgbdDataset::open(seq);
+  for (const auto& e : ds.entries()) out.push_back(e.timestamp);
+  return out;
+}
+
+// --start-frame 10 --max-frames 20: the 20 poses of frames 10 .. 29; bad values name the option.
+TEST_F(Ds3dSlamCli, StartFrameSkipsTheFirstFrames) {
+  const fs::path seq = long_sequence();
+  const auto stamps = frame_stamps(seq);
+  ASSERT_EQ(stamps.size(), 32U);
+  const std::string out = " --quiet --out '" + (work_ / "traj.txt").string() + "' --stats '" +
+                          (work_ / "stats.json").string() + "'";
+  auto r = ds3d::test::run_tool(
+      "ds3d-slam", "'" + seq.string() + "'" + out + " --start-frame 10 --max-frames 20");
+  ASSERT_EQ(r.code, 0) << r.output;
+  auto traj = ds3d::read_tum_trajectory(work_ / "traj.txt");
+  ASSERT_EQ(traj.size(), 20U);
+  for (std::size_t i = 0; i < traj.size(); ++i) EXPECT_EQ(traj[i].timestamp, stamps[10 + i]) << i;
+  EXPECT_EQ(ds3d::test::read_json(work_ / "stats.json").at("frames").as_number(), 20.0);
+  // Without --max-frames: to the end.
+  r = ds3d::test::run_tool("ds3d-slam", "'" + seq.string() + "'" + out + " --start-frame 29");
+  ASSERT_EQ(r.code, 0) << r.output;
+  traj = ds3d::read_tum_trajectory(work_ / "traj.txt");
+  ASSERT_EQ(traj.size(), 3U);
+  EXPECT_EQ(traj.front().timestamp, stamps[29]);
+  EXPECT_EQ(traj.back().timestamp, stamps[31]);
+  for (const std::string bad : {"32", "-1", "x", ""}) {
+    SCOPED_TRACE(bad);
+    fs::remove(work_ / "traj.txt");
+    r = ds3d::test::run_tool("ds3d-slam",
+                             "'" + seq.string() + "'" + out + " --start-frame '" + bad + "'");
+    EXPECT_EQ(r.code, 2) << r.output;
+    EXPECT_EQ(r.output.rfind("ds3d-slam: --start-frame ", 0), 0U) << r.output;
+    EXPECT_FALSE(fs::exists(work_ / "traj.txt"));
+    if (bad == "32") {
+      EXPECT_NE(r.output.find("has 32 associated frames"), std::string::npos) << r.output;
+    }
+  }
+}
+
+// A 6-frame sequence with two walkers, their ground-truth masks (mask/) and detections with
+// 3-D boxes (detections_noisy.jsonl, a miss rate small enough to keep every box here).
+const fs::path& walking_sequence() {
+  static const fs::path dir = [] {
+    const fs::path d = sequence().parent_path() / "walking";
+    ds3d::synth::SynthOptions o;
+    o.scenario = ds3d::synth::Scenario::kWalkingXyz;
+    o.num_frames = 6;
+    o.seed = 2;
+    o.detection_miss = 1e-6;
+    (void)ds3d::synth::generate_sequence(d, o);
+    return d;
+  }();
+  return dir;
+}
+
+// --dynamic-out DIR: one mask PNG (image-sized, 0/255) and one keypoints.jsonl line per frame.
+struct DynamicOut {
+  std::vector<cv::Mat> masks;
+  std::vector<ds3d::detail::JsonValue> lines;
+};
+DynamicOut read_dynamic_out(const fs::path& dir, const std::vector<double>& stamps) {
+  DynamicOut out;
+  for (const auto& l : ds3d::test::read_lines(dir / "keypoints.jsonl")) {
+    out.lines.push_back(ds3d::detail::parse_json(l));
+  }
+  for (std::size_t i = 0; i < out.lines.size(); ++i) {
+    const auto& j = out.lines[i];
+    EXPECT_EQ(j.at("timestamp").as_number(), stamps[i]);
+    EXPECT_EQ(j.at("frame").as_number(), static_cast<double>(i));
+    EXPECT_EQ(j.at("u").size(), j.at("status").size());
+    EXPECT_EQ(j.at("v").size(), j.at("status").size());
+    out.masks.push_back(
+        cv::imread((dir / j.at("mask").as_string()).string(), cv::IMREAD_UNCHANGED));
+  }
+  return out;
+}
+
+// The keypoints of one line with a given status, as rounded pixels.
+std::vector<cv::Point> keypoints_with(const ds3d::detail::JsonValue& line, const char* status) {
+  std::vector<cv::Point> out;
+  for (std::size_t k = 0; k < line.at("status").size(); ++k) {
+    if (line.at("status").at(k).as_string() != status) continue;
+    out.emplace_back(static_cast<int>(std::lround(line.at("u").at(k).as_number())),
+                     static_cast<int>(std::lround(line.at("v").at(k).as_number())));
+  }
+  return out;
+}
+
+// mask:DIR source: the PNG is the source's mask, and the dynamic keypoints lie on it. file:PATH
+// source (3-D boxes): the PNG holds the boxes, and every dynamic keypoint lies in one.
+TEST_F(Ds3dSlamCli, DynamicOutWritesMasksAndKeypointLabels) {
+  const fs::path seq = walking_sequence();
+  const auto stamps = frame_stamps(seq);
+  const fs::path dir = work_ / "dyn" / "out";  // created with its parent
+  auto r = ds3d::test::run_tool("ds3d-slam", "'" + seq.string() + "' --quiet --out '" +
+                                                 (work_ / "traj.txt").string() +
+                                                 "' --dynamic 'mask:" + (seq / "mask").string() +
+                                                 "' --dynamic-out '" + dir.string() + "'");
+  ASSERT_EQ(r.code, 0) << r.output;
+  auto out = read_dynamic_out(dir, stamps);
+  ASSERT_EQ(out.lines.size(), 6U);
+  std::size_t dynamic_keypoints = 0;
+  for (std::size_t i = 0; i < out.lines.size(); ++i) {
+    SCOPED_TRACE(i);
+    char name[64];
+    std::snprintf(name, sizeof(name), "%.6f.png", stamps[i]);
+    ASSERT_TRUE(fs::exists(dir / name));
+    const cv::Mat& m = out.masks[i];
+    ASSERT_EQ(m.type(), CV_8UC1);
+    ASSERT_EQ(m.size(), cv::Size(640, 480));
+    const cv::Mat gt = cv::imread((seq / "mask" / name).string(), cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(cv::countNonZero(m != (gt != 0)), 0) << "differs from the source's mask";
+    EXPECT_EQ(cv::countNonZero(m != 0) + cv::countNonZero(m == 0), 640 * 480);
+    EXPECT_GT(cv::countNonZero(m), 0) << "no walker in frame " << i;
+    const auto dyn = keypoints_with(out.lines[i], "dynamic");
+    for (const auto& p : dyn) EXPECT_EQ(m.at<std::uint8_t>(p), 255) << p;
+    dynamic_keypoints += dyn.size();
+    EXPECT_FALSE(keypoints_with(out.lines[i], "tracked").empty());
+  }
+  EXPECT_GT(dynamic_keypoints, 20U);
+  // The same trajectory as without --dynamic-out.
+  const std::string with = ds3d::test::read_file(work_ / "traj.txt");
+  r = ds3d::test::run_tool("ds3d-slam", "'" + seq.string() + "' --quiet --out '" +
+                                            (work_ / "traj.txt").string() +
+                                            "' --dynamic 'mask:" + (seq / "mask").string() + "'");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(ds3d::test::read_file(work_ / "traj.txt"), with);
+
+  const fs::path det = seq / "detections_noisy.jsonl";
+  ASSERT_TRUE(fs::exists(det));
+  r = ds3d::test::run_tool("ds3d-slam", "'" + seq.string() + "' --quiet --out '" +
+                                            (work_ / "traj.txt").string() +
+                                            "' --dynamic 'file:" + det.string() +
+                                            "' --dynamic-out '" + dir.string() + "'");
+  ASSERT_EQ(r.code, 0) << r.output;
+  out = read_dynamic_out(dir, stamps);
+  ASSERT_EQ(out.lines.size(), 6U);
+  dynamic_keypoints = 0;
+  for (std::size_t i = 0; i < out.lines.size(); ++i) {
+    const cv::Mat& m = out.masks[i];
+    ASSERT_EQ(m.size(), cv::Size(640, 480));
+    EXPECT_GT(cv::countNonZero(m), 0) << i;
+    for (const auto& p : keypoints_with(out.lines[i], "dynamic")) {
+      EXPECT_EQ(m.at<std::uint8_t>(p), 255) << i << " " << p;
+      ++dynamic_keypoints;
+    }
+  }
+  EXPECT_GT(dynamic_keypoints, 20U);
+}
+
+// The folder is checked before the first frame, and a run stopped by an unreadable frame leaves
+// the files of the frames done; without a dynamic source the masks are empty.
+TEST_F(Ds3dSlamCli, DynamicOutIsCheckedFirstAndKeptOnEarlyStop) {
+  std::ofstream(work_ / "afile") << "x";
+  auto r =
+      ds3d::test::run_tool("ds3d-slam", args("--dynamic-out '" + (work_ / "afile").string() + "'"));
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("--dynamic-out '" + (work_ / "afile").string() +
+                          "' exists and is not a folder"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(work_ / "traj.txt"));
+  fs::remove(listed("rgb.txt", 3));
+  const fs::path dir = work_ / "dyn";
+  r = ds3d::test::run_tool("ds3d-slam", args("--dynamic-out '" + dir.string() + "'"));
+  EXPECT_EQ(r.code, 1) << r.output;
+  const auto out = read_dynamic_out(dir, frame_stamps(work_ / "seq"));
+  ASSERT_EQ(out.lines.size(), 3U);
+  std::size_t pngs = 0;
+  for (const auto& e : fs::directory_iterator(dir)) pngs += e.path().extension() == ".png" ? 1 : 0;
+  EXPECT_EQ(pngs, 3U);
+  for (const auto& m : out.masks) {
+    ASSERT_EQ(m.size(), cv::Size(640, 480));
+    EXPECT_EQ(cv::countNonZero(m), 0);
+  }
+  EXPECT_TRUE(keypoints_with(out.lines[2], "dynamic").empty());
 }
 
 // Every tool answers --version (its name and the library version, exit 0) and --help (its

@@ -224,6 +224,100 @@ TEST(Ds3dEvalCli, WindowTextJsonAndPlot) {
   fs::remove_all(dir);
 }
 
+// Two estimates: the drifting one and one with a constant 5 cm offset and noise.
+std::vector<ds3d::AtePlotEstimate> two_estimates(const ds3d::Trajectory& gt,
+                                                 const ds3d::Trajectory& drift) {
+  auto noisy = gt;
+  for (std::size_t i = 0; i < noisy.size(); ++i) {
+    noisy[i].T_world_cam.translation() +=
+        Eigen::Vector3d(0.05, 0.02 * std::sin(0.3 * static_cast<double>(i)), 0);
+  }
+  return {{"drift.txt", ds3d::evaluate_ate(gt, drift, {.alignment = ds3d::Alignment::kNone})},
+          {"noisy.txt", ds3d::evaluate_ate(gt, noisy, {.alignment = ds3d::Alignment::kNone})}};
+}
+
+// Pixels of exactly one colour (BGR).
+int count_colour(const cv::Mat& img, const cv::Scalar& c) {
+  cv::Mat m;
+  cv::inRange(img, c, c, m);
+  return cv::countNonZero(m);
+}
+
+TEST(AtePlot, DrawsSeveralEstimatesWithAColourBar) {
+  const auto [gt, drift] = drift_pair();
+  const auto est = two_estimates(gt, drift);
+  const cv::Mat img = ds3d::render_multi_ate_plot(gt, est, {.width = 1000, .height = 600});
+  ASSERT_EQ(img.cols, 1000);
+  ASSERT_EQ(img.rows, 600);
+  // Each estimate in its own colour (Tableau blue, orange): the wide line under the error ramp.
+  EXPECT_GT(count_colour(img, {180, 119, 31}), 300);
+  EXPECT_GT(count_colour(img, {14, 127, 255}), 300);
+  // The colour bar beside the top view (header 34 + 2 x 18 px; view 410 px wide from x = 20):
+  // the ramp's top colour (largest error) at its top, its bottom colour at its bottom.
+  const cv::Vec3b top = img.at<cv::Vec3b>(111, 454);
+  const cv::Vec3b bottom = img.at<cv::Vec3b>(548, 454);
+  EXPECT_NEAR(top[2], 0.84 * 255, 3);  // red
+  EXPECT_NEAR(top[0], 0.12 * 255, 3);
+  EXPECT_NEAR(bottom[2], 0.19 * 255, 3);  // dark violet
+  EXPECT_NEAR(bottom[0], 0.23 * 255, 3);
+  // One estimate works too; none, eleven, or too little height do not.
+  EXPECT_EQ(ds3d::render_multi_ate_plot(gt, {est[0]}).cols, 1400);
+  EXPECT_THROW((void)ds3d::render_multi_ate_plot(gt, {}), ds3d::InvalidArgument);
+  EXPECT_THROW(
+      (void)ds3d::render_multi_ate_plot(gt, std::vector<ds3d::AtePlotEstimate>(11, est[0])),
+      ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::render_multi_ate_plot(gt, std::vector<ds3d::AtePlotEstimate>(10, est[0]),
+                                                 {.height = 400}),
+               ds3d::InvalidArgument);
+  EXPECT_THROW((void)ds3d::render_multi_ate_plot(gt, {{"x", ds3d::AteResult{}}}),
+               ds3d::InvalidArgument);
+}
+
+// ate GT EST1 EST2: a block per estimate, a JSON list of them, one plot of both.
+TEST(Ds3dEvalCli, SeveralEstimates) {
+  if (!fs::exists(ds3d::test::tool_path("ds3d-eval"))) GTEST_SKIP() << "ds3d-eval not built";
+  const fs::path dir = fs::temp_directory_path() / ("ds3d_multi_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const auto [gt, drift] = drift_pair();
+  auto noisy = gt;
+  for (auto& p : noisy) p.T_world_cam.translation().y() += 0.03;
+  ds3d::write_tum_trajectory(dir / "gt.txt", gt);
+  ds3d::write_tum_trajectory(dir / "a.txt", drift);
+  ds3d::write_tum_trajectory(dir / "b.txt", noisy);
+  const std::string g = "'" + (dir / "gt.txt").string() + "'";
+  const std::string a = (dir / "a.txt").string();
+  const std::string b = (dir / "b.txt").string();
+  const std::string files = " " + g + " '" + a + "' '" + b + "'";
+  const fs::path png = dir / "p.png";
+  auto r =
+      ds3d::test::run_tool("ds3d-eval", "ate" + files + " --json --plot '" + png.string() + "'");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto j = ds3d::detail::parse_json(r.output);
+  EXPECT_EQ(j.at("ground_truth").as_string(), (dir / "gt.txt").string());
+  ASSERT_EQ(j.at("estimates").size(), 2U);
+  EXPECT_EQ(j.at("estimates").at(0).at("file").as_string(), a);
+  EXPECT_EQ(j.at("estimates").at(1).at("file").as_string(), b);
+  EXPECT_NEAR(j.at("estimates").at(0).at("rmse").as_number(), ds3d::evaluate_ate(gt, drift).rmse,
+              1e-12);
+  EXPECT_NEAR(j.at("estimates").at(1).at("rmse").as_number(), ds3d::evaluate_ate(gt, noisy).rmse,
+              1e-12);
+  const cv::Mat img = cv::imread(png.string());
+  EXPECT_EQ(img.cols, 1400);
+  EXPECT_EQ(img.rows, 640);
+  EXPECT_GT(count_colour(img, {14, 127, 255}), 300);  // the second estimate's colour
+  // Text: "estimate FILE" and the usual block for each, the single-estimate text unchanged.
+  r = ds3d::test::run_tool("ds3d-eval", "ate" + files);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto one = [&](const std::string& est) {
+    return ds3d::test::run_tool("ds3d-eval", "ate " + g + " '" + est + "'").output;
+  };
+  EXPECT_EQ(r.output, "estimate " + a + "\n" + one(a) + "\nestimate " + b + "\n" + one(b));
+  r = ds3d::test::run_tool("ds3d-eval", "rpe" + files + " --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(ds3d::detail::parse_json(r.output).at("estimates").size(), 2U);
+  fs::remove_all(dir);
+}
+
 TEST(Ds3dEvalCli, HugePositionsAndBadIntegersFailClearly) {
   if (!fs::exists(ds3d::test::tool_path("ds3d-eval"))) GTEST_SKIP() << "ds3d-eval not built";
   const fs::path dir = fs::temp_directory_path() / ("ds3d_huge_" + std::to_string(::getpid()));

@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -38,5 +39,34 @@ struct AtePlotOptions {
 /// render_ate_plot() written as PNG (temporary file + rename). @throws ds3d::IoError.
 void write_ate_plot(const std::filesystem::path& path, const Trajectory& gt,
                     const AteResult& result, const AtePlotOptions& options = {});
+
+/// One estimate of render_multi_ate_plot().
+struct AtePlotEstimate {
+  std::string label;  ///< legend text (e.g. the file name; long ones keep their last 60 chars)
+  AteResult result;   ///< evaluate_ate(gt, estimate)
+};
+
+/// Draws several estimates against one ground truth, evo-style. Left, the top view (the plane
+/// of the two principal axes of the ground-truth positions, as render_ate_plot()): the ground
+/// truth grey, each aligned estimate coloured by its error on one scale shared by all (0 .. the
+/// largest error of any estimate), over a wider line in the estimate's own colour and with its
+/// number `[k]` at its end; beside it the colour bar of that error scale [m]. Right, each
+/// estimate's error over time in its own colour with its RMSE as a thin line. The header lists
+/// every estimate (number, label, pairs and statistics) in its colour. Local-ATE windows are not
+/// drawn.
+/// @param gt        the ground truth (its whole path is drawn)
+/// @param estimates 1 to 10 estimates, each with a result with matches
+/// @param options   image size (height >= 200 px + 18 px per estimate + 34 px) and title
+/// @return CV_8UC3 image of options.width x options.height
+/// @throws ds3d::InvalidArgument for bad options, no or too many estimates, a result without
+///   matches or with non-finite statistics.
+[[nodiscard]] cv::Mat render_multi_ate_plot(const Trajectory& gt,
+                                            const std::vector<AtePlotEstimate>& estimates,
+                                            const AtePlotOptions& options = {});
+
+/// render_multi_ate_plot() written as PNG (temporary file + rename). @throws ds3d::IoError.
+void write_multi_ate_plot(const std::filesystem::path& path, const Trajectory& gt,
+                          const std::vector<AtePlotEstimate>& estimates,
+                          const AtePlotOptions& options = {});
 
 }  // namespace ds3d

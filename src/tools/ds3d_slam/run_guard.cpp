@@ -16,7 +16,8 @@
 namespace ds3d_slam_tool {
 namespace fs = std::filesystem;
 
-void check_output_paths(const std::vector<OutputPath>& files, const fs::path& viz) {
+void check_output_paths(const std::vector<OutputPath>& files,
+                        const std::vector<OutputPath>& folders) {
   std::error_code ec;
   for (const auto& [flag, path] : files) {
     if (path.empty()) continue;
@@ -28,12 +29,14 @@ void check_output_paths(const std::vector<OutputPath>& files, const fs::path& vi
     DS3D_CHECK_AS(ds3d::IoError, !fs::is_directory(path, ec), flag, " '", path.string(),
                   "' is a folder, expected a file name");
   }
-  if (viz.empty()) return;
-  DS3D_CHECK_AS(ds3d::IoError, !fs::exists(viz, ec) || fs::is_directory(viz, ec), "--viz '",
-                viz.string(), "' exists and is not a folder");
-  fs::create_directories(viz, ec);
-  DS3D_CHECK_AS(ds3d::IoError, fs::is_directory(viz, ec) && ::access(viz.c_str(), W_OK) == 0,
-                "--viz '", viz.string(), "': cannot create or write the folder");
+  for (const auto& [flag, dir] : folders) {
+    if (dir.empty()) continue;
+    DS3D_CHECK_AS(ds3d::IoError, !fs::exists(dir, ec) || fs::is_directory(dir, ec), flag, " '",
+                  dir.string(), "' exists and is not a folder");
+    fs::create_directories(dir, ec);
+    DS3D_CHECK_AS(ds3d::IoError, fs::is_directory(dir, ec) && ::access(dir.c_str(), W_OK) == 0,
+                  flag, " '", dir.string(), "': cannot create or write the folder");
+  }
 }
 
 namespace {
@@ -89,11 +92,11 @@ std::vector<std::string> detection_files(const std::string& spec) {
 }
 
 std::size_t check_detections(const std::string& path, const ds3d::RgbdDataset& ds,
-                             std::size_t frames, double max_dt) {
+                             std::size_t begin, std::size_t frames, double max_dt) {
   const auto file = ds3d::DetectionsFile::read(path);
   std::size_t unmatched = 0;
   double first = 0;
-  for (std::size_t i = 0; i < frames; ++i) {
+  for (std::size_t i = begin; i < begin + frames; ++i) {
     const double t = ds.entries()[i].timestamp;
     if (file.find(t, max_dt) != nullptr) continue;
     if (unmatched++ == 0) first = t;
@@ -102,8 +105,8 @@ std::size_t check_detections(const std::string& path, const ds3d::RgbdDataset& d
     const auto& f = file.frames();
     throw ds3d::IoError(ds3d::detail::concat(
         "detections file '", path, "' matches none of the ", frames, " frames (frames ",
-        fixed(ds.entries().front().timestamp), " .. ", fixed(ds.entries()[frames - 1].timestamp),
-        " s; file ",
+        fixed(ds.entries()[begin].timestamp), " .. ",
+        fixed(ds.entries()[begin + frames - 1].timestamp), " s; file ",
         f.empty() ? std::string("has no lines")
                   : fixed(f.front().timestamp) + " .. " + fixed(f.back().timestamp) + " s",
         "; file.max_dt ", max_dt, " s): wrong file or sequence?"));
@@ -118,7 +121,7 @@ std::size_t check_detections(const std::string& path, const ds3d::RgbdDataset& d
 
 }  // namespace
 
-InputWarnings check_inputs(const ds3d::RgbdDataset& ds, std::size_t frames,
+InputWarnings check_inputs(const ds3d::RgbdDataset& ds, std::size_t first, std::size_t frames,
                            const ds3d::slam::SlamConfig& config) {
   const auto& d = ds.diagnostics();
   const std::string dir = ds.directory().string();
@@ -143,7 +146,7 @@ InputWarnings check_inputs(const ds3d::RgbdDataset& ds, std::size_t frames,
   w.unassociated_rgb = d.unassociated_rgb;
   w.large_gaps = d.large_gaps;
   for (const auto& path : detection_files(config.dynamic)) {
-    w.frames_without_detections += check_detections(path, ds, frames, config.file.max_dt);
+    w.frames_without_detections += check_detections(path, ds, first, frames, config.file.max_dt);
   }
   return w;
 }

@@ -20,9 +20,11 @@ struct OutputPath {
 };
 
 /// Throws ds3d::IoError naming the flag and the path when a requested file cannot be written
-/// there (its folder is missing or not writable, or the path is a folder), or when --viz names
-/// something that is not a folder or cannot be created. Creates the --viz folder.
-void check_output_paths(const std::vector<OutputPath>& files, const std::filesystem::path& viz);
+/// there (its folder is missing or not writable, or the path is a folder), or when an output
+/// folder (--viz, --dynamic-out) names something that is not a folder or cannot be created.
+/// Creates the requested output folders (with their parents).
+void check_output_paths(const std::vector<OutputPath>& files,
+                        const std::vector<OutputPath>& folders);
 
 /// Installs the SIGINT/SIGTERM handler: the first signal asks the run to stop after the frames
 /// already read (the outputs are then written as usual); a second one ends the process at once.
@@ -43,10 +45,10 @@ struct InputWarnings {
 };
 
 /// Prints one warning line to stderr per kind of problem in the dataset's lists and in the
-/// file:PATH detections of `config` over the first `frames` frames.
+/// file:PATH detections of `config` over the `frames` frames from frame `first` on.
 /// @throws ds3d::IoError naming the file when a detections file matches none of the frames.
-[[nodiscard]] InputWarnings check_inputs(const ds3d::RgbdDataset& ds, std::size_t frames,
-                                         const ds3d::slam::SlamConfig& config);
+[[nodiscard]] InputWarnings check_inputs(const ds3d::RgbdDataset& ds, std::size_t first,
+                                         std::size_t frames, const ds3d::slam::SlamConfig& config);
 
 /// The weights that the htx source of `config` loads, when it names one ("" otherwise).
 [[nodiscard]] std::filesystem::path htx_weights(const ds3d::slam::SlamConfig& config);
