@@ -16,7 +16,7 @@ from .hdbscan_estimator import (HDBSCAN, CondensedTree, MinimumSpanningTree,  # 
                                 SingleLinkageTree, all_points_membership_vectors,
                                 approximate_predict, membership_vector)
 from .config import SlamConfig, config_keys  # noqa: F401
-from .slam import make_dynamic_source, run_slam  # noqa: F401
+from .slam import Slam, SlamResult, make_dynamic_source, run_slam  # noqa: F401
 
 from . import synth  # noqa: F401
 
@@ -24,5 +24,6 @@ from . import synth  # noqa: F401
 __all__ = sorted({"__version__", "htx", "synth", "HdbscanResult", "hdbscan", "hdbscan_precomputed",
                   "HDBSCAN", "CondensedTree", "SingleLinkageTree", "MinimumSpanningTree",
                   "approximate_predict", "membership_vector", "all_points_membership_vectors",
-                  "SlamConfig", "config_keys", "make_dynamic_source", "run_slam"}
+                  "SlamConfig", "config_keys", "make_dynamic_source", "run_slam", "Slam",
+                  "SlamResult"}
                  | {n for n in dir(_ds3d) if not n.startswith("_")})

@@ -5,6 +5,8 @@ import pytest
 
 import ds3d
 
+CAMERA = ds3d.Camera(525.0, 525.0, 319.5, 239.5)  # 640 x 480
+
 
 def test_person_in_front_of_wall():
     rng = np.random.default_rng(1)
@@ -15,7 +17,7 @@ def test_person_in_front_of_wall():
                               1.5 + rng.uniform(-0.15, 0.15, 200)])
     kp = np.vstack([wall, person]).astype(np.float32)
     f = ds3d.DynamicFeatureFilter()
-    r = f.filter(kp, [ds3d.ImageBox(200, 100, 330, 470, score=0.9)])
+    r = f.filter(kp, [ds3d.ImageBox(200, 100, 330, 470, score=0.9)], CAMERA)
     dyn = np.asarray(r.dynamic, dtype=bool)
     assert dyn[len(wall):].mean() >= 0.95
     assert dyn[:len(wall)].mean() <= 0.02
@@ -47,8 +49,8 @@ def test_support_plane_and_solid_box():
     kp, is_floor = kp[ok], is_floor[ok]
     loose = ds3d.ImageBox(cx - f * 0.65 / 2.5, cy + f * -0.6 / 2.5, cx + f * 0.65 / 2.5,
                           cy + f * 1.5 / 2.5, score=0.9)
-    plain = np.asarray(ds3d.DynamicFeatureFilter().filter(kp, [loose]).dynamic, bool)
-    r = ds3d.DynamicFeatureFilter().filter(kp, [loose], support_plane=[0, -1, 0, 1.2])
+    plain = np.asarray(ds3d.DynamicFeatureFilter().filter(kp, [loose], CAMERA).dynamic, bool)
+    r = ds3d.DynamicFeatureFilter().filter(kp, [loose], CAMERA, support_plane=[0, -1, 0, 1.2])
     dyn = np.asarray(r.dynamic, bool)
     assert (plain & is_floor).sum() > 20  # the failure the plane fixes
     assert not (dyn & is_floor).any() and r.num_on_support > 20
@@ -56,7 +58,7 @@ def test_support_plane_and_solid_box():
     gated = np.asarray(r.gated, bool)  # went into the box's clustering: the person, not the floor
     assert not (gated & is_floor).any() and gated[~is_floor].mean() >= 0.9
     with pytest.raises(ValueError, match="support_plane"):
-        ds3d.DynamicFeatureFilter().filter(kp, [loose], support_plane=[0, 0, 0, 1])
+        ds3d.DynamicFeatureFilter().filter(kp, [loose], CAMERA, support_plane=[0, 0, 0, 1])
 
     # SolidBox from cuboid corners (any order); a point beside the box is outside it.
     corners = np.array([[x, y, zz] for x in (-0.3, 0.3) for y in (-0.85, 0.85)
@@ -76,3 +78,22 @@ def test_support_plane_and_solid_box():
     p.support_margin = -1
     with pytest.raises(ValueError, match="support_margin"):
         ds3d.DynamicFeatureFilter(p)
+
+
+def test_camera_forms():
+    rng = np.random.default_rng(2)
+    kp = np.column_stack([rng.uniform(0, 639, 300), rng.uniform(0, 479, 300),
+                          rng.uniform(1, 3, 300)]).astype(np.float32)
+    boxes = [ds3d.ImageBox(100, 100, 300, 400, score=0.9)]
+    ref = np.asarray(ds3d.DynamicFeatureFilter().filter(kp, boxes, CAMERA).dynamic)
+    for cam in (CAMERA.to_dict(), {"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5}):
+        r = ds3d.DynamicFeatureFilter().filter(kp, boxes, camera=cam)
+        assert np.array_equal(np.asarray(r.dynamic), ref)
+    r = ds3d.DynamicFeatureFilter().filter(kp, boxes, fx=525, fy=525, cx=319.5, cy=239.5)
+    assert np.array_equal(np.asarray(r.dynamic), ref)  # the explicit keyword form still works
+    with pytest.raises(TypeError, match="camera is required"):
+        ds3d.DynamicFeatureFilter().filter(kp, boxes)
+    with pytest.raises(ValueError, match="not both"):
+        ds3d.DynamicFeatureFilter().filter(kp, boxes, CAMERA, fx=500, fy=500, cx=1, cy=1)
+    with pytest.raises(ValueError, match="fx"):
+        ds3d.DynamicFeatureFilter().filter(kp, boxes, {"fx": -1, "fy": 1, "cx": 0, "cy": 0})

@@ -7,11 +7,53 @@
 #include <pybind11/stl.h>
 
 #include <optional>
+#include <string>
 #include <vector>
 
+#include "../camera_util.hpp"
 #include "ds3d/dynamic/dynamic_filter.hpp"
 
 namespace py = pybind11;
+
+namespace {
+
+// The camera of DynamicFeatureFilter.filter: `camera`, or the fx fy cx cy width height keywords.
+ds3d::PinholeCamera filter_camera(const py::object& camera, const py::object& fx,
+                                  const py::object& fy, const py::object& cx, const py::object& cy,
+                                  int width, int height) {
+  constexpr const char* fn = "ds3d.DynamicFeatureFilter.filter";
+  const bool any = !fx.is_none() || !fy.is_none() || !cx.is_none() || !cy.is_none();
+  if (!camera.is_none()) {
+    DS3D_CHECK(!any, fn, ": give camera or fx, fy, cx, cy, not both");
+    return ds3d::py_camera::camera_from(fn, camera);
+  }
+  if (fx.is_none() || fy.is_none() || cx.is_none() || cy.is_none()) {
+    throw py::type_error(std::string(fn) +
+                         ": camera is required (a ds3d.Camera, a dict, a preset name or a "
+                         "camera.txt path; or the keywords fx, fy, cx, cy)");
+  }
+  py::dict d;
+  d["fx"] = fx;
+  d["fy"] = fy;
+  d["cx"] = cx;
+  d["cy"] = cy;
+  d["width"] = width;
+  d["height"] = height;
+  return ds3d::py_camera::camera_from(fn, d);
+}
+
+ds3d::DynamicFilterResult filter(ds3d::DynamicFeatureFilter& f,
+                                 Eigen::Ref<const ds3d::Keypoints3f> kp,
+                                 const std::vector<ds3d::ImageBox>& boxes, const py::object& camera,
+                                 const std::optional<Eigen::Vector4f>& support_plane,
+                                 const py::object& fx, const py::object& fy, const py::object& cx,
+                                 const py::object& cy, int width, int height) {
+  const ds3d::PinholeCamera cam = filter_camera(camera, fx, fy, cx, cy, width, height);
+  const py::gil_scoped_release release;
+  return f.filter(kp, boxes, cam, support_plane);
+}
+
+}  // namespace
 
 void bind_dynamic_filter(py::module_& m) {
   py::class_<ds3d::SolidBox>(m, "SolidBox",
@@ -88,26 +130,14 @@ void bind_dynamic_filter(py::module_& m) {
                                          "regions across frames (dynamic_filter.hpp).")
       .def(py::init<const ds3d::DynamicFilterParams&>(),
            py::arg("params") = ds3d::DynamicFilterParams{})
-      .def(
-          "filter",
-          [](ds3d::DynamicFeatureFilter& f, Eigen::Ref<const ds3d::Keypoints3f> kp,
-             const std::vector<ds3d::ImageBox>& boxes, double fx, double fy, double cx, double cy,
-             int width, int height, const std::optional<Eigen::Vector4f>& support_plane) {
-            ds3d::PinholeCamera cam;
-            cam.fx = fx;
-            cam.fy = fy;
-            cam.cx = cx;
-            cam.cy = cy;
-            cam.width = width;
-            cam.height = height;
-            return f.filter(kp, boxes, cam, support_plane);
-          },
-          py::arg("keypoints"), py::arg("boxes"), py::arg("fx") = 525.0, py::arg("fy") = 525.0,
-          py::arg("cx") = 319.5, py::arg("cy") = 239.5, py::arg("width") = 640,
-          py::arg("height") = 480, py::arg("support_plane") = py::none(),
-          py::call_guard<py::gil_scoped_release>(),
-          "keypoints: N x 3 float32 (u px, v px, depth m; 0 = none); support_plane: (4,) floor "
-          "(a, b, c, d) in the camera frame, keypoints on it stay static. Returns "
-          "DynamicFilterResult.")
+      .def("filter", &filter, py::arg("keypoints"), py::arg("boxes"),
+           py::arg("camera") = py::none(), py::arg("support_plane") = py::none(), py::kw_only(),
+           py::arg("fx") = py::none(), py::arg("fy") = py::none(), py::arg("cx") = py::none(),
+           py::arg("cy") = py::none(), py::arg("width") = 640, py::arg("height") = 480,
+           "keypoints: N x 3 float32 (u px, v px, depth m; 0 = none); boxes: list of ImageBox;\n"
+           "camera: a ds3d.Camera, a dict, a preset name or a camera.txt path (or, instead,\n"
+           "the keywords fx fy cx cy [px] with width height [px]); support_plane: (4,) floor\n"
+           "(a, b, c, d) in the camera frame, keypoints on it stay static. Returns\n"
+           "DynamicFilterResult. TypeError without a camera; ValueError for bad values.")
       .def("reset", &ds3d::DynamicFeatureFilter::reset);
 }

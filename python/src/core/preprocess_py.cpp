@@ -10,6 +10,7 @@
 #include <limits>
 #include <optional>
 
+#include "../camera_util.hpp"
 #include "ds3d/preprocess/preprocess.hpp"
 #include "numpy_util.hpp"
 
@@ -63,6 +64,24 @@ ds3d::PreprocessResult run(
   return ds3d::preprocess(depth, cam, p);
 }
 
+// preprocess with a camera (ds3d.Camera, dict, preset name or camera.txt path) of the image size.
+ds3d::PreprocessResult run_camera(
+    const Eigen::Ref<const ds3d::DepthImageU16, 0, Eigen::OuterStride<>>& depth,
+    const py::object& camera, double leaf_size, int stride, double min_depth, double max_depth,
+    bool remove_ground, double ground_threshold, std::int64_t ground_max_iterations,
+    std::optional<std::array<double, 3>> ground_normal_prior, double ground_max_angle_deg,
+    bool remove_outliers, double outlier_radius, std::int64_t outlier_min_neighbors,
+    int num_threads) {
+  constexpr const char* fn = "ds3d.preprocess";
+  const auto c = ds3d::py_camera::camera_from(fn, camera);
+  DS3D_CHECK(depth.rows() == c.height && depth.cols() == c.width, fn, ": depth is ", depth.rows(),
+             "x", depth.cols(), " (H x W) but the camera is ", c.height, "x", c.width);
+  return run(depth, c.fx, c.fy, c.cx, c.cy, c.depth_scale, leaf_size, stride, min_depth, max_depth,
+             remove_ground, ground_threshold, ground_max_iterations, ground_normal_prior,
+             ground_max_angle_deg, remove_outliers, outlier_radius, outlier_min_neighbors,
+             num_threads);
+}
+
 }  // namespace
 
 void bind_preprocess(py::module_& m) {
@@ -108,4 +127,20 @@ void bind_preprocess(py::module_& m) {
         "Depth (H, W) uint16 -> voxel centroids -> ground removal -> radius outliers in one call\n"
         "(include/ds3d/preprocess.hpp). ground_normal_prior=None accepts any plane; otherwise\n"
         "the ground must be within ground_max_angle_deg of it and below the camera.");
+  m.def("preprocess", &run_camera, py::arg("depth"), py::arg("camera"), py::kw_only(),
+        py::arg("leaf_size") = d.voxel.leaf_size.dx, py::arg("stride") = d.depth.stride,
+        py::arg("min_depth") = d.depth.min_depth, py::arg("max_depth") = d.depth.max_depth,
+        py::arg("remove_ground") = d.remove_ground,
+        py::arg("ground_threshold") = d.ground.distance_threshold,
+        py::arg("ground_max_iterations") = d.ground.max_iterations,
+        py::arg("ground_normal_prior") = std::optional<std::array<double, 3>>(std::array<double, 3>{
+            d.ground.normal_prior.x(), d.ground.normal_prior.y(), d.ground.normal_prior.z()}),
+        py::arg("ground_max_angle_deg") = d.ground.max_angle_deg,
+        py::arg("remove_outliers") = d.remove_outliers,
+        py::arg("outlier_radius") = d.outlier.radius,
+        py::arg("outlier_min_neighbors") = d.outlier.min_neighbors,
+        py::arg("num_threads") = d.num_threads,
+        "preprocess(depth, camera, *, leaf_size=..., ...): the same with a ds3d.Camera, dict,\n"
+        "preset name or camera.txt path of the image size (depth_scale from it; distortion is\n"
+        "ignored, as in the fx fy cx cy form).");
 }

@@ -11,6 +11,7 @@
 #include <limits>
 #include <optional>
 
+#include "../camera_util.hpp"
 #include "ds3d/preprocess/rgbd.hpp"
 #include "numpy_util.hpp"
 
@@ -68,6 +69,32 @@ ds3d::DepthToPointsResult run(const Eigen::Ref<const Image, 0, Eigen::OuterStrid
   return ds3d::depth_to_points(depth, cam, p);
 }
 
+// The same with a camera (ds3d.Camera, dict, preset name or camera.txt path): intrinsics, depth
+// scale and distortion from it; its size must be the image's.
+template <class Image>
+ds3d::DepthToPointsResult run_camera(const Eigen::Ref<const Image, 0, Eigen::OuterStride<>>& depth,
+                                     const py::object& camera, int stride,
+                                     std::optional<RoiTuple> roi, double min_depth,
+                                     double max_depth, bool undistort) {
+  constexpr const char* fn = "ds3d.depth_to_points";
+  const auto c = ds3d::py_camera::camera_from(fn, camera);
+  DS3D_CHECK(depth.rows() == c.height && depth.cols() == c.width, fn, ": depth is ", depth.rows(),
+             "x", depth.cols(), " (H x W) but the camera is ", c.height, "x", c.width);
+  return run<Image>(depth, c.fx, c.fy, c.cx, c.cy, c.depth_scale, stride, roi, min_depth, max_depth,
+                    Distortion{c.k1, c.k2, c.p1, c.p2, c.k3}, undistort);
+}
+
+template <class Image>
+void def_camera_overload(py::module_& m, bool noconvert) {
+  m.def("depth_to_points", &run_camera<Image>, py::arg("depth").noconvert(noconvert),
+        py::arg("camera"), py::kw_only(), py::arg("stride") = 1, py::arg("roi") = py::none(),
+        py::arg("min_depth") = 0.0, py::arg("max_depth") = std::numeric_limits<double>::infinity(),
+        py::arg("undistort") = true,
+        "depth_to_points(depth, camera, *, stride=1, roi=None, min_depth=0, max_depth=inf,\n"
+        "undistort=True): camera a ds3d.Camera, dict, preset name or camera.txt path of the\n"
+        "image size (depth_scale and distortion from it).");
+}
+
 template <class Image>
 void def_overload(py::module_& m, const char* doc) {
   m.def("depth_to_points", &run<Image>, py::arg("depth").noconvert(), py::arg("fx"), py::arg("fy"),
@@ -102,4 +129,7 @@ void bind_rgbd(py::module_& m) {
         py::arg("roi") = py::none(), py::arg("min_depth") = 0.0,
         py::arg("max_depth") = std::numeric_limits<double>::infinity(),
         py::arg("distortion") = py::none(), py::arg("undistort") = true, doc);
+  def_camera_overload<ds3d::DepthImageU16>(m, true);
+  def_camera_overload<ds3d::DepthImageF>(m, true);
+  def_camera_overload<ds3d::DepthImageF>(m, false);
 }

@@ -9,41 +9,16 @@
 
 #include <string>
 
+#include "../trajectory_util.hpp"
 #include "ds3d/errors.hpp"
 #include "ds3d/eval/trajectory.hpp"
 #include "ds3d/eval/trajectory_metrics.hpp"
 
 namespace py = pybind11;
 
-namespace {
-
-using Rows = Eigen::Matrix<double, Eigen::Dynamic, 8, Eigen::RowMajor>;
-
-ds3d::Trajectory from_rows(const Eigen::Ref<const Rows>& a, const char* fn) {
-  ds3d::Trajectory t(static_cast<std::size_t>(a.rows()));
-  for (Eigen::Index i = 0; i < a.rows(); ++i) {
-    auto& p = t[static_cast<std::size_t>(i)];
-    p.timestamp = a(i, 0);
-    p.T_world_cam.translation() = Eigen::Vector3d(a(i, 1), a(i, 2), a(i, 3));
-    DS3D_CHECK(a.row(i).allFinite(), fn, ": row ", i, " is not finite");
-    p.T_world_cam.linear() =
-        ds3d::detail::tum_quaternion_to_matrix(a(i, 4), a(i, 5), a(i, 6), a(i, 7));
-  }
-  return t;
-}
-
-Rows to_rows(const ds3d::Trajectory& t) {
-  Rows a(static_cast<Eigen::Index>(t.size()), 8);
-  for (std::size_t i = 0; i < t.size(); ++i) {
-    const Eigen::Quaterniond q(t[i].T_world_cam.linear());
-    const Eigen::Vector3d x = t[i].T_world_cam.translation();
-    a.row(static_cast<Eigen::Index>(i)) << t[i].timestamp, x.x(), x.y(), x.z(), q.x(), q.y(), q.z(),
-        q.w();
-  }
-  return a;
-}
-
-}  // namespace
+using ds3d::py_traj::from_rows;
+using ds3d::py_traj::Rows;
+using ds3d::py_traj::to_rows;
 
 void bind_trajectory(py::module_& m) {
   py::class_<ds3d::ErrorStats>(m, "ErrorStats", "rmse, mean, median, std (population), min, max.")

@@ -47,6 +47,11 @@ std::size_t wrap_index(const ds3d::RgbdDataset& ds, py::ssize_t i) {
 }  // namespace
 
 void bind_dataset(py::module_& m) {
+  // Preset names and camera.txt paths for every camera argument (camera_util.hpp).
+  ds3d::py_camera::camera_from_spec = [](const std::string& spec) {
+    return ds3d::py_camera::is_preset(spec) ? ds3d::camera_preset(spec)
+                                            : ds3d::read_camera_file(spec);
+  };
   py::class_<ds3d::RgbdDataset>(
       m, "RgbdDataset",
       "A TUM RGB-D / Bonn RGB-D Dynamic folder read frame by frame (include/ds3d/dataset.hpp).\n\n"

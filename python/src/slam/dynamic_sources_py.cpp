@@ -432,6 +432,18 @@ void bind_dynamic_sources(py::module_& m) {
       py::arg("config"), "Internal: see ds3d.make_dynamic_source (python/ds3d/slam.py).");
 
   m.def(
+      "_make_masker",
+      [](const ds3d::slam::SlamConfig& c, bool force) -> std::shared_ptr<HdbscanMasker> {
+        // make_masker's rule (ds3d-slam): a masker from config.filter unless dynamic is "none".
+        if (c.dynamic == "none" && !force) return nullptr;
+        c.filter.validate();
+        return std::make_shared<HdbscanMasker>(c.filter);
+      },
+      py::arg("config"), py::arg("force") = false,
+      "Internal: the HdbscanMasker of a SlamConfig (None when dynamic.source is 'none', unless "
+      "force); see ds3d.Slam.");
+
+  m.def(
       "image_boxes",
       [](const DynamicObjects& objects, const py::object& camera) {
         return ds3d::slam::image_boxes(objects, pu::camera_from("ds3d.image_boxes", camera));

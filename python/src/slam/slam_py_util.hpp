@@ -3,8 +3,7 @@
 #pragma once
 // Helpers shared by the SLAM-side bindings (dataset, orb_features, dynamic_sources,
 // geometric_motion): images numpy <-> cv::Mat with ValueErrors that name the function, the
-// parameter and the offending dtype/shape, and cameras as dicts (the convention of
-// ds3d.camera_preset and RgbdDataset.camera).
+// parameter and the offending dtype/shape; cameras come from camera_util.hpp.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
@@ -15,9 +14,10 @@
 
 #include <opencv2/core.hpp>
 
+#include "../camera_util.hpp"
 #include "ds3d/camera.hpp"
-#include "ds3d/slam/dataset.hpp"
 #include "ds3d/errors.hpp"
+#include "ds3d/slam/dataset.hpp"
 
 namespace ds3d::py_slam {
 
@@ -88,80 +88,13 @@ inline cv::Mat depth_view(const char* fn, const py::handle& obj,
           const_cast<std::uint16_t*>(keep.data())};
 }
 
-/// Camera as a dict: fx fy cx cy width height k1 k2 p1 p2 k3 depth_scale.
-inline py::dict camera_dict(const PinholeCamera& c) {
-  py::dict d;
-  d["fx"] = c.fx;
-  d["fy"] = c.fy;
-  d["cx"] = c.cx;
-  d["cy"] = c.cy;
-  d["width"] = c.width;
-  d["height"] = c.height;
-  d["k1"] = c.k1;
-  d["k2"] = c.k2;
-  d["p1"] = c.p1;
-  d["p2"] = c.p2;
-  d["k3"] = c.k3;
-  d["depth_scale"] = c.depth_scale;
-  return d;
-}
-
-/// A camera from a dict (keys of camera_dict(); fx fy cx cy required, others default as in
-/// PinholeCamera), a preset name (tum1 tum2 tum3 tum_ros bonn) or a camera.txt path; validated.
-inline PinholeCamera camera_from(const char* fn, const py::handle& obj) {
-  PinholeCamera c;
-  if (py::isinstance<py::str>(obj) || py::hasattr(obj, "__fspath__")) {
-    const auto s = path_from(obj);
-    if (s == "tum1" || s == "tum2" || s == "tum3" || s == "tum_ros" || s == "bonn") {
-      c = camera_preset(s);
-    } else {
-      c = read_camera_file(s);
-    }
-  } else {
-    DS3D_CHECK(py::isinstance<py::dict>(obj), fn,
-               ": camera must be a dict (fx fy cx cy [width height k1 k2 p1 p2 k3 depth_scale]), "
-               "a preset name or a camera.txt path (got ",
-               describe(obj), ")");
-    const auto d = py::reinterpret_borrow<py::dict>(obj);
-    for (const auto& kv : d) {
-      const auto key = py::str(kv.first).cast<std::string>();
-      const auto num = [&]() {
-        try {
-          return kv.second.cast<double>();
-        } catch (const py::cast_error&) {
-          throw InvalidArgument(std::string(fn) + ": camera['" + key + "'] must be a number (got " +
-                                describe(kv.second) + ")");
-        }
-      };
-      if (key == "fx") c.fx = num();
-      else if (key == "fy") c.fy = num();
-      else if (key == "cx") c.cx = num();
-      else if (key == "cy") c.cy = num();
-      else if (key == "k1") c.k1 = num();
-      else if (key == "k2") c.k2 = num();
-      else if (key == "p1") c.p1 = num();
-      else if (key == "p2") c.p2 = num();
-      else if (key == "k3") c.k3 = num();
-      else if (key == "depth_scale") c.depth_scale = num();
-      else if (key == "width" || key == "height") {
-        const double v = num();
-        DS3D_CHECK(std::isfinite(v) && v == std::floor(v) && v > 0 && v < 1e6, fn, ": camera['",
-                   key, "'] must be a positive integer (got ", v, ")");
-        (key == "width" ? c.width : c.height) = static_cast<int>(v);
-      } else {
-        throw InvalidArgument(std::string(fn) + ": camera has an unknown key '" + key + "'");
-      }
-    }
-    for (const char* k : {"fx", "fy", "cx", "cy"}) {
-      DS3D_CHECK(d.contains(k), fn, ": camera dict lacks '", k, "'");
-    }
-  }
-  c.validate(fn);
-  return c;
-}
+/// Cameras: see python/src/camera_util.hpp (a ds3d.Camera, a dict, a preset name or a path).
+using py_camera::camera_dict;
+using py_camera::camera_from;
 
 /// Checks that an image of h × w pixels matches the camera size.
-inline void check_size(const char* fn, const char* param, const cv::Mat& m, const PinholeCamera& c) {
+inline void check_size(const char* fn, const char* param, const cv::Mat& m,
+                       const PinholeCamera& c) {
   if (m.empty()) return;
   DS3D_CHECK(m.cols == c.width && m.rows == c.height, fn, ": ", param, " is ", m.rows, "x", m.cols,
              " (H x W) but the camera is ", c.height, "x", c.width);
