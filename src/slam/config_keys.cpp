@@ -58,6 +58,11 @@ std::vector<ConfigKey> frontend_keys() {
           "frontend.spare_features", [](auto& c) -> auto& { return c.frontend.spare_features; },
           "spare ORB candidates that replace keypoints the dynamic filter removes (0 = off)"),
       key(
+          "frontend.confirm_far_points",
+          [](auto& c) -> auto& { return c.frontend.confirm_far_points; },
+          "with a dynamic source: far keypoints seen again by the next keyframe at a consistent "
+          "depth become map points"),
+      key(
           "frontend.odometry_fallback",
           [](auto& c) -> auto& { return c.frontend.odometry_fallback; },
           "frame-to-frame odometry when the map cannot be tracked (the frame becomes a keyframe)"),

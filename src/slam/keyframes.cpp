@@ -2,6 +2,8 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // SlamFrontend::Impl, keyframes: when to insert one, insertion, covisibility and culling.
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <utility>
@@ -95,12 +97,82 @@ int SlamFrontend::Impl::add_keyframe(const FrameData& f, const Eigen::Isometry3d
     K.data.points[i] = pid;
     recent_points.push_back(pid);
   }
+  if (confirm_far && K.id > 0) confirm_far_points(K);
   update_connections(K);
   if (cfg.fuse_neighbors) search_in_neighbors(K.id);
   cull_recent_points(K.id);
   last_kf_frame = static_cast<int>(frame_counter);
   ref_kf = K.id;
   return K.id;
+}
+
+// The keypoint of K without a map point that best matches a far point at x_k (K's camera frame),
+// seen at `level` with descriptor `desc`: within 3 px × level scale of its projection, level
+// ± 1, depth within 5 %, distance <= kThLow and < 0.8 × the second best. -1 if none.
+int SlamFrontend::Impl::match_far_point(const Keyframe& K, const Eigen::Vector3d& x_k, int level,
+                                        const std::uint8_t* desc) const {
+  if (x_k.z() <= 0.1) return -1;
+  const double u = k.fx * x_k.x() / x_k.z() + k.cx;
+  const double v = k.fy * x_k.y() / x_k.z() + k.cy;
+  if (!cfg.camera.in_image(u, v)) return -1;
+  const double radius = 3.0 * scale[static_cast<std::size_t>(level)];
+  int best = 256;
+  int second = 256;
+  int best_i = -1;
+  K.data.grid.for_each_in(u, v, radius, [&](int i) {
+    const auto si = static_cast<std::size_t>(i);
+    if (K.data.points[si] >= 0 || K.data.depth[si] <= 0) return;
+    if (std::abs(K.data.octave[si] - level) > 1) return;
+    if (std::abs(K.data.depth[si] - x_k.z()) > 0.05 * x_k.z()) return;
+    const int d = descriptor_distance(desc, K.data.desc.ptr<std::uint8_t>(i));
+    if (d < best) {
+      second = best;
+      best = d;
+      best_i = i;
+    } else if (d < second) {
+      second = d;
+    }
+  });
+  if (best_i < 0 || best > kThLow || best > 0.8 * second) return -1;
+  return best_i;
+}
+
+// FrontendConfig::confirm_far_points: far keypoints of the previous live keyframe that K sees
+// again become map points of both, at the mean of the two back-projections. Returns how many.
+int SlamFrontend::Impl::confirm_far_points(Keyframe& K) {
+  int pi = K.id - 1;
+  while (pi >= 0 && keyframes[static_cast<std::size_t>(pi)].bad) --pi;
+  if (pi < 0) return 0;
+  Keyframe& P = keyframes[static_cast<std::size_t>(pi)];
+  const Eigen::Isometry3d P_wc = P.T_cw.inverse();
+  const Eigen::Isometry3d K_wc = K.T_cw.inverse();
+  const auto back_project = [this](const FrameData& d, std::size_t i) {
+    const double z = d.depth[i];
+    return Eigen::Vector3d((d.uv[i].x() - k.cx) / k.fx * z, (d.uv[i].y() - k.cy) / k.fy * z, z);
+  };
+  int made = 0;
+  for (std::size_t j = 0; j < P.data.size(); ++j) {
+    if (P.data.points[j] >= 0 || P.data.depth[j] <= P.data.close_depth) continue;
+    const Eigen::Vector3d x_w = P_wc * back_project(P.data, j);
+    const int i = match_far_point(K, K.T_cw * x_w, P.data.octave[j],
+                                  P.data.desc.ptr<std::uint8_t>(static_cast<int>(j)));
+    if (i < 0) continue;
+    const auto si = static_cast<std::size_t>(i);
+    MapPoint p;
+    p.pos = 0.5 * (x_w + K_wc * back_project(K.data, si));
+    p.desc = row_descriptor(K.data.desc, i);
+    p.obs = {{P.id, static_cast<int>(j)}, {K.id, i}};
+    p.ref_kf = K.id;
+    p.first_kf = K.id;
+    const int pid = static_cast<int>(points.size());
+    points.push_back(p);
+    update_point_geometry(points.back());
+    P.data.points[j] = pid;
+    K.data.points[si] = pid;
+    recent_points.push_back(pid);
+    ++made;
+  }
+  return made;
 }
 
 // Covisibility edges of keyframe K from its current points (ORB-SLAM2's UpdateConnections:

@@ -80,6 +80,8 @@ SlamFrontend::Impl::Impl(FrontendConfig c, std::shared_ptr<DynamicObjectSource> 
       source(std::move(s)),
       masker(std::move(m)) {
   if (!source) source = std::make_shared<NoDynamicObjects>();
+  confirm_far =
+      cfg.confirm_far_points && dynamic_cast<const NoDynamicObjects*>(source.get()) == nullptr;
   if (!masker) masker = std::make_shared<NoDynamicMasker>();
   k = {cfg.camera.fx, cfg.camera.fy, cfg.camera.cx, cfg.camera.cy, cfg.bf};
   for (int l = 0; l < cfg.orb.num_levels; ++l) {

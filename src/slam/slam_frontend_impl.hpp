@@ -203,6 +203,7 @@ struct SlamFrontend::Impl {
   std::vector<double> inv_sigma2;  // per level
   std::shared_ptr<DynamicObjectSource> source;
   std::shared_ptr<DynamicFeatureMasker> masker;
+  bool confirm_far = false;  // cfg.confirm_far_points and a source other than "none"
 
   std::vector<Keyframe> keyframes;  // indexed by id; culled ones stay (bad = true)
   std::size_t live_keyframes = 0;
@@ -308,6 +309,9 @@ struct SlamFrontend::Impl {
   // ---- keyframes.cpp: keyframe decision, insertion, covisibility, culling
   bool need_keyframe(const FrameData& f, int inliers) const;
   int add_keyframe(const FrameData& f, const Eigen::Isometry3d& T_cw, const FrameInput& in);
+  int confirm_far_points(Keyframe& K);
+  [[nodiscard]] int match_far_point(const Keyframe& K, const Eigen::Vector3d& x_k, int level,
+                                    const std::uint8_t* desc) const;
   void update_connections(Keyframe& K);
   [[nodiscard]] std::vector<int> best_covisible(int kf_id, int n) const;
   [[nodiscard]] std::pair<int, int> redundancy(int id) const;

@@ -91,6 +91,13 @@ struct FrontendConfig {
   /// corner is formed by the person's silhouette against the background: it moves with the
   /// person, but its depth is the background's, so the dynamic filter keeps it as static.
   double depth_edge_ratio = 0;
+  /// With a dynamic source (not "none"): at each keyframe, far keypoints (depth beyond
+  /// orb.max_depth) of the previous keyframe that have no map point and that the new keyframe
+  /// sees again, within 3 px × level scale of their projection, at a depth within 5 % and with a
+  /// similar descriptor, become map points observed by both. One far depth is too noisy to make
+  /// a point from; two agreeing views are not. Without a source it stays off: moving people
+  /// far away agree across two views too, and nothing removes them.
+  bool confirm_far_points = true;
   double keyframe_ref_ratio = 0.75;  ///< a keyframe is needed when the frame tracks fewer than
                                      ///< this fraction of the reference keyframe's well-observed
                                      ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
