@@ -6,6 +6,8 @@
 
 #include <string>
 
+#include "ds3d/detail/abi_guard.hpp"
+
 namespace ds3d {
 
 /// Versions and settings of the compiled library.
