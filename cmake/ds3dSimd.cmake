@@ -6,12 +6,13 @@
 #   avx2           - -mavx2 -mfma (error if the compiler rejects them; the host is not checked, so
 #                    binaries built this way need an AVX2+FMA CPU: Haswell / Zen or newer)
 #   none           - the compiler's baseline (SSE2 on x86-64)
-# EIGEN_MAX_ALIGN_BYTES=16 is an INTERFACE definition of ds3d::core in EVERY configuration: Eigen
-# documents it for keeping AVX code ABI-compatible with SSE code, since otherwise Eigen aligns
-# fixed-size members to 32 bytes under AVX and 16 without. It does NOT unify the heap allocator
-# (Eigen 3.4 uses its 32-byte hand-made aligned malloc under AVX, plain malloc under SSE), so code
-# that exchanges Eigen heap objects with ds3d must use the same flags: installed AVX2 builds
-# export them to consumers (CMakeLists.txt); see docs/htx.md.
+# These flags are PRIVATE to our compiled targets; nothing puts them on ds3d::core, ds3d::htx or
+# ds3d::slam users. EIGEN_MAX_ALIGN_BYTES=16 (every configuration) gives fixed-size Eigen members
+# the layout of a default SSE build. It does NOT unify the heap allocator (Eigen 3.4 uses its
+# 32-byte hand-made aligned malloc under AVX, plain malloc under SSE), so code that exchanges
+# Eigen heap objects with the compiled libraries needs the same flags: the opt-in target
+# ds3d::abi carries them (CMakeLists.txt), include/ds3d/detail/abi_guard.hpp checks them at link
+# time; see docs/install.md.
 include(CheckCXXCompilerFlag)
 include(CheckCXXSourceRuns)
 
@@ -63,8 +64,16 @@ if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU" AND CMAKE_CXX_COMPILER_VERSION VERSION_G
   set(DS3D_SIMD_WARNING_FLAGS_AVX2 -Wno-array-bounds)
 endif()
 
+# What ds3d::abi carries and ds3d_target_simd() applies.
+set(DS3D_ABI_COMPILE_DEFINITIONS EIGEN_MAX_ALIGN_BYTES=16)
+set(DS3D_ABI_COMPILE_OPTIONS "")
+if(DS3D_SIMD_LEVEL STREQUAL "avx2")
+  set(DS3D_ABI_COMPILE_OPTIONS ${DS3D_SIMD_FLAGS_AVX2})
+endif()
+
 # Applies the chosen SIMD flags to one of our compiled targets (PRIVATE: never propagated).
 function(ds3d_target_simd target)
+  target_compile_definitions(${target} PRIVATE ${DS3D_ABI_COMPILE_DEFINITIONS})
   if(DS3D_SIMD_LEVEL STREQUAL "avx2")
     target_compile_options(${target} PRIVATE ${DS3D_SIMD_FLAGS_AVX2} ${DS3D_SIMD_WARNING_FLAGS_AVX2})
   endif()

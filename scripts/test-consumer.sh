@@ -8,12 +8,45 @@
 # serves ds3d::core and ds3d::htx (the shipped detector, no OpenCV, no Ceres), builds and runs
 # include_in_slam against it, and that
 # asking it for COMPONENTS slam fails cleanly at configure time.
+# The consumer contract (docs/install.md), from the build tree without installing
+# (-Dds3d_DIR=BUILD_DIR): tests/consumer/ builds <ds3d/ds3d.hpp> with plain x86-64 flags next to
+# a static Eigen library built with other flags, whatever SIMD level ds3d has, and checks that
+# no ds3d target propagates compile flags; the compiled ds3d::htx links with ds3d::abi, and
+# without it fails to link when the library's Eigen ABI differs; a core-only find_package(ds3d)
+# configures with OpenCV and Ceres hidden; <ds3d/ds3d.hpp> includes every core header.
 # DS3D_EXTRA_CONSUMERS="dir ..." adds more examples/<dir> projects to the build loop.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${1:-build}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+
+echo "consumer: <ds3d/ds3d.hpp> covers the core"
+for h in $(cd include && find ds3d -name '*.hpp' ! -path 'ds3d/detail/*' ! -path 'ds3d/htx/*' \
+             ! -path 'ds3d/slam/*' ! -name ds3d.hpp | sort); do
+  grep -q "#include \"${h}\"" include/ds3d/ds3d.hpp || {
+    echo "consumer: FAILED: include/ds3d/ds3d.hpp lacks ${h}" >&2
+    exit 1
+  }
+done
+
+echo "consumer: tests/consumer against the build tree (-Dds3d_DIR=${BUILD_DIR}, not installed)"
+cmake -S tests/consumer -B "${tmp}/build-contract" -G Ninja -Dds3d_DIR="$(cd "${BUILD_DIR}" && pwd)" \
+  >"${tmp}/contract.log" || { cat "${tmp}/contract.log"; exit 1; }
+cmake --build "${tmp}/build-contract" >/dev/null
+"${tmp}/build-contract/umbrella_app"
+"${tmp}/build-contract/htx_guard"
+simd=$(sed -n 's/^set(ds3d_SIMD_LEVEL "\(.*\)").*/\1/p' "${BUILD_DIR}/ds3dConfig.cmake")
+if [ "${simd}" = avx2 ]; then
+  if cmake --build "${tmp}/build-contract" --target htx_guard_mismatch >"${tmp}/guard.log" 2>&1; then
+    echo "consumer: FAILED: plain-flag code linked the avx2 ds3d::htx without ds3d::abi" >&2
+    exit 1
+  fi
+  grep -q "ds3d_eigen_abi_heap16_fixed16" "${tmp}/guard.log"
+  echo "consumer: plain-flag code calling the avx2 ds3d::htx without ds3d::abi fails to link"
+fi
+cmake -S examples/consumer -B "${tmp}/build-tree-slam" -G Ninja \
+  -Dds3d_DIR="$(cd "${BUILD_DIR}" && pwd)" -DCONSUMER_COMPONENTS=slam >/dev/null
 
 echo "consumer: installing ${BUILD_DIR} into ${tmp}/prefix"
 cmake --install "${BUILD_DIR}" --prefix "${tmp}/prefix" >/dev/null
@@ -29,6 +62,11 @@ done
 "${tmp}/build-include_in_slam/include_in_slam"
 "${tmp}/build-cluster_bench/cluster_bench" '--benchmark_filter=/n:(1000|100)(/|$)' \
   --benchmark_min_time=0.01
+
+echo "consumer: core-only find_package(ds3d) with OpenCV and Ceres hidden"
+cmake -S tests/consumer -B "${tmp}/build-no-opencv" -G Ninja -DCMAKE_PREFIX_PATH="${tmp}/prefix" \
+  -DCMAKE_DISABLE_FIND_PACKAGE_OpenCV=ON -DCMAKE_DISABLE_FIND_PACKAGE_Ceres=ON \
+  -DCMAKE_DISABLE_FIND_PACKAGE_yaml-cpp=ON >/dev/null
 
 echo "consumer: header-only install (DS3D_BUILD_SLAM=OFF)"
 cmake -S . -B "${tmp}/core-build" -G Ninja -DDS3D_BUILD_SLAM=OFF -DDS3D_BUILD_TESTS=OFF \

@@ -11,6 +11,7 @@
 #include "ds3d/camera.hpp"
 #include "ds3d/cloud.hpp"
 #include "ds3d/cluster/hdbscan.hpp"
+#include "ds3d/cluster/hdbscan_predict.hpp"
 #include "ds3d/dynamic/detections.hpp"
 #include "ds3d/dynamic/dynamic_filter.hpp"
 #include "ds3d/errors.hpp"

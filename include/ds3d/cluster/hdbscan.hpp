@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "ds3d/detail/core_separate.hpp"
 #include "ds3d/errors.hpp"
 
 namespace ds3d {
@@ -129,23 +130,25 @@ struct HdbscanResult {
 /// @note Complexity: kNN O(n log n); MST per HdbscanParams::algorithm; tree steps O(n log n);
 ///   memory O(n·D). Output is identical for every num_threads. n < min_samples is handled like
 ///   the reference (k clamped to n - 1).
-[[nodiscard]] inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points,
-                                           const HdbscanParams& params = {},
-                                           const std::vector<double>& scale = {});
+[[nodiscard]] DS3D_CORE_INLINE HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points,
+                                                     const HdbscanParams& params = {},
+                                                     const std::vector<double>& scale = {});
 
 /// HDBSCAN* on a precomputed symmetric distance matrix (Prim on the dense matrix).
 /// @param distances N × N, finite, >= 0, symmetric, zero diagonal.
 /// @param params see HdbscanParams (algorithm is ignored).
 /// @throws ds3d::InvalidArgument naming the first bad entry or parameter.
 /// @note O(n²) time, O(n) extra memory beyond the matrix.
-[[nodiscard]] inline HdbscanResult hdbscan_precomputed(Eigen::Ref<const RowMatrixXd> distances,
-                                                       const HdbscanParams& params = {});
+[[nodiscard]] DS3D_CORE_INLINE HdbscanResult
+hdbscan_precomputed(Eigen::Ref<const RowMatrixXd> distances, const HdbscanParams& params = {});
 
 /// Renders a ClusterSelection as the reference's string ("eom" or "leaf").
-[[nodiscard]] inline std::string to_string(ClusterSelection method);
+[[nodiscard]] DS3D_CORE_INLINE std::string to_string(ClusterSelection method);
 /// Renders an MstAlgorithm as a string ("auto", "prims" or "boruvka").
-[[nodiscard]] inline std::string to_string(MstAlgorithm algorithm);
+[[nodiscard]] DS3D_CORE_INLINE std::string to_string(MstAlgorithm algorithm);
 
 }  // namespace ds3d
 
+#if !defined(DS3D_CORE_SEPARATE) || defined(DS3D_CORE_IMPLEMENTATION)
 #include "ds3d/detail/hdbscan_impl.hpp"
+#endif

@@ -18,7 +18,7 @@
 
 namespace ds3d {
 
-inline void DynamicFilterParams::validate() const {
+DS3D_CORE_INLINE void DynamicFilterParams::validate() const {
   constexpr const char* f = "ds3d::DynamicFilterParams";
   DS3D_CHECK(std::isfinite(min_score) && min_score >= 0.0F && min_score <= 1.0F, f,
              ": min_score must be in [0, 1] (got ", min_score, ")");
@@ -596,7 +596,7 @@ inline ImageBox foreground_region(const Region& fg, const ImageBox& box) {
 
 }  // namespace detail
 
-inline std::vector<std::pair<ImageBox, int>> DynamicFeatureFilter::work_boxes(
+DS3D_CORE_INLINE std::vector<std::pair<ImageBox, int>> DynamicFeatureFilter::work_boxes(
     const std::vector<ImageBox>& boxes, const PinholeCamera& camera,
     std::size_t& num_ignored) const {
   const float img_u1 = static_cast<float>(camera.width) - 0.5F;
@@ -649,7 +649,7 @@ inline std::vector<std::pair<ImageBox, int>> DynamicFeatureFilter::work_boxes(
   return work;
 }
 
-inline DynamicFilterResult DynamicFeatureFilter::filter(
+DS3D_CORE_INLINE DynamicFilterResult DynamicFeatureFilter::filter(
     Eigen::Ref<const Keypoints3f> keypoints, const std::vector<ImageBox>& boxes,
     const PinholeCamera& camera, const std::optional<Eigen::Vector4f>& support_plane) {
   constexpr const char* f = "ds3d::DynamicFeatureFilter::filter";

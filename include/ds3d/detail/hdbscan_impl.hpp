@@ -22,7 +22,7 @@
 
 namespace ds3d {
 
-inline void HdbscanParams::validate() const {
+DS3D_CORE_INLINE void HdbscanParams::validate() const {
   DS3D_CHECK(min_cluster_size >= 2, "ds3d::hdbscan: min_cluster_size must be >= 2 (got ",
              min_cluster_size, ")");
   DS3D_CHECK(min_samples >= 0,
@@ -44,11 +44,11 @@ inline void HdbscanParams::validate() const {
   (void)detail::resolve_num_threads(num_threads, "ds3d::hdbscan");
 }
 
-inline std::string to_string(ClusterSelection method) {
+DS3D_CORE_INLINE std::string to_string(ClusterSelection method) {
   return method == ClusterSelection::kLeaf ? "leaf" : "eom";
 }
 
-inline std::string to_string(MstAlgorithm algorithm) {
+DS3D_CORE_INLINE std::string to_string(MstAlgorithm algorithm) {
   switch (algorithm) {
     case MstAlgorithm::kPrims:
       return "prims";
@@ -546,8 +546,9 @@ inline HdbscanResult hdbscan_trivial(std::size_t n) {
 
 }  // namespace detail
 
-inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const HdbscanParams& params,
-                             const std::vector<double>& scale) {
+DS3D_CORE_INLINE HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points,
+                                       const HdbscanParams& params,
+                                       const std::vector<double>& scale) {
   params.validate();
   const auto n = static_cast<std::size_t>(points.rows());
   const auto dim = static_cast<std::size_t>(points.cols());
@@ -609,8 +610,8 @@ inline HdbscanResult hdbscan(Eigen::Ref<const RowMatrixXd> points, const Hdbscan
   return res;
 }
 
-inline HdbscanResult hdbscan_precomputed(Eigen::Ref<const RowMatrixXd> distances,
-                                         const HdbscanParams& params) {
+DS3D_CORE_INLINE HdbscanResult hdbscan_precomputed(Eigen::Ref<const RowMatrixXd> distances,
+                                                   const HdbscanParams& params) {
   params.validate();
   const auto n = static_cast<std::size_t>(distances.rows());
   DS3D_CHECK(distances.cols() == distances.rows(),

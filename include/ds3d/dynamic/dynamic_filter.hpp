@@ -53,6 +53,7 @@
 
 #include "ds3d/camera.hpp"
 #include "ds3d/cluster/hdbscan.hpp"
+#include "ds3d/detail/core_separate.hpp"
 #include "ds3d/errors.hpp"
 
 namespace ds3d {
@@ -258,4 +259,6 @@ class DynamicFeatureFilter {
 
 }  // namespace ds3d
 
+#if !defined(DS3D_CORE_SEPARATE) || defined(DS3D_CORE_IMPLEMENTATION)
 #include "ds3d/detail/dynamic_filter_impl.hpp"
+#endif

@@ -33,6 +33,7 @@
 
 #include "ds3d/box3.hpp"
 #include "ds3d/cloud.hpp"
+#include "ds3d/detail/abi_guard.hpp"
 
 namespace ds3d {
 

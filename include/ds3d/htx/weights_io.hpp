@@ -29,6 +29,8 @@
 #include <string_view>
 #include <vector>
 
+#include "ds3d/detail/abi_guard.hpp"
+
 namespace ds3d {
 
 /// Element types of the safetensors format.

@@ -129,3 +129,14 @@ inline std::size_t release_voxel_grid_scratch() noexcept;
 }  // namespace ds3d
 
 #include "ds3d/detail/voxel_grid_impl.hpp"
+
+#if defined(DS3D_CORE_SEPARATE) && !defined(DS3D_CORE_IMPLEMENTATION)
+// Compiled once in ds3d_core_separate.cpp (see ds3d/detail/core_separate.hpp).
+namespace ds3d {
+extern template VoxelGridResult voxel_grid<Points3f>(const Points3f&, const VoxelGridParams&);
+extern template VoxelGridResult voxel_grid<Eigen::Ref<const Points3f>>(
+    const Eigen::Ref<const Points3f>&, const VoxelGridParams&);
+extern template VoxelGridResult voxel_grid<std::vector<Eigen::Vector3f>>(
+    const std::vector<Eigen::Vector3f>&, const VoxelGridParams&);
+}  // namespace ds3d
+#endif

@@ -6,6 +6,8 @@
 
 #include <string>
 
+#include "ds3d/detail/abi_guard.hpp"
+
 namespace ds3d {
 
 /// Versions and settings of the compiled library.
@@ -24,7 +26,7 @@ struct BuildInfo {
   /// e.g. "sse2 avx avx2 fma".
   std::string simd_isa;
   /// EIGEN_MAX_ALIGN_BYTES of the library (16 in every ds3d build; code sharing Eigen objects
-  /// with ds3d must use the same value, which target ds3d::core sets for consumers).
+  /// with the compiled libraries must use the same value: CMake target ds3d::abi sets it).
   int eigen_max_align_bytes = 0;
 };
 

@@ -21,6 +21,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "ds3d/detail/abi_guard.hpp"
+
 namespace ds3d::slam {
 
 /// A pose increment (ω, v): rotation [rad] then translation [m], as taken by pose_plus().

@@ -28,6 +28,7 @@
 #include <opencv2/core.hpp>
 
 #include "ds3d/camera.hpp"
+#include "ds3d/detail/abi_guard.hpp"
 
 namespace ds3d::synth {
 

@@ -13,6 +13,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "ds3d/detail/abi_guard.hpp"
 #include "ds3d/eval/trajectory.hpp"
 #include "ds3d/eval/trajectory_metrics.hpp"
 
