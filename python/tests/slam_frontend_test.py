@@ -184,7 +184,7 @@ def test_slam_with_a_source_object_and_return_result(walking):
     with pytest.raises(TypeError, match="masker"):
         ds3d.Slam(ds3d.SlamConfig(), camera="tum1", masker="hdbscan")
     with pytest.raises(ValueError, match="gate"):
-        ds3d.Slam(ds3d.SlamConfig(gate="motion"), camera="tum1")
+        ds3d.Slam(ds3d.SlamConfig(dynamic="none", gate="motion"), camera="tum1")
 
 
 # --- run_slam's result object, progress and early stop ---
