@@ -67,7 +67,9 @@ enum class TrajectoryFormat : std::uint8_t {
 
 /// Parses EuRoC CSV poses (see the file comment). An integer timestamp is read exactly as
 /// nanoseconds; a decimal one as a number of nanoseconds.
+/// @param text    whole file content
 /// @param options zero-quaternion policy (as for TUM)
+/// @param source  name used in error messages (file name)
 /// @throws ds3d::IoError naming source and line for a line with fewer than 8 values or a value
 ///   that is not a number.
 [[nodiscard]] TumReadResult parse_euroc_trajectory(std::string_view text,
