@@ -62,6 +62,35 @@ double tick_step(double range, int target) {
   return 10 * p;
 }
 
+// The error-over-time panel's frame: time t0..t1 [s] across, error 0..ytop [m] up.
+struct ErrorAxes {
+  cv::Rect plot;
+  double t0, t1, ytop;
+  cv::Point operator()(double t, double e) const {
+    return cv::Point(to_px(plot.x + (t - t0) / (t1 - t0) * plot.width),
+                     to_px(plot.y + plot.height - e / ytop * plot.height));
+  }
+};
+
+// Grid lines, tick labels and axis titles of an error-over-time panel.
+void draw_error_axes(cv::Mat& img, const ErrorAxes& pt, const std::string& y_title) {
+  const cv::Rect& plot = pt.plot;
+  const double ys = tick_step(pt.ytop, 5);
+  int ticks = 0;  // bounded even if rounding stalls the sum
+  for (double y = 0; y <= pt.ytop + 1e-12 && ticks < 100; y += ys, ++ticks) {
+    cv::line(img, pt(pt.t0, y), pt(pt.t1, y), {235, 235, 235}, 1);
+    text(img, fmt("%.3g", y), pt(pt.t0, y) + cv::Point(-58, 5), 0.42);
+  }
+  const double xs = tick_step(pt.t1 - pt.t0, 6);
+  ticks = 0;
+  for (double x = 0; x <= pt.t1 - pt.t0 + 1e-9 && ticks < 100; x += xs, ++ticks) {
+    cv::line(img, pt(pt.t0 + x, 0), pt(pt.t0 + x, 0) + cv::Point(0, 5), {40, 40, 40}, 1);
+    text(img, fmt("%g", x), pt(pt.t0 + x, 0) + cv::Point(-8, 22), 0.42);
+  }
+  text(img, "time [s]", {plot.x + plot.width / 2 - 30, plot.y + plot.height + 44}, 0.45);
+  text(img, y_title, {plot.x + 6, plot.y + 18}, 0.45);
+}
+
 // The local ATE (AteResult::windows) in the error-over-time panel: each window's RMSE as a
 // horizontal segment over its span, and a label at the worst one. `pt` maps (t, error) to pixels.
 template <class ToPixel>
@@ -241,24 +270,8 @@ void draw_multi_errors(cv::Mat& img, const std::vector<AtePlotEstimate>& estimat
   DS3D_CHECK(std::isfinite(ytop) && std::isfinite(t1 - t0),
              "ds3d::render_multi_ate_plot: the error range ", ytop, " or the time span ", t1 - t0,
              " s is not finite");
-  const auto pt = [&](double t, double e) {
-    return cv::Point(to_px(plot.x + (t - t0) / (t1 - t0) * plot.width),
-                     to_px(plot.y + plot.height - e / ytop * plot.height));
-  };
-  const double ys = tick_step(ytop, 5);
-  int ticks = 0;
-  for (double y = 0; y <= ytop + 1e-12 && ticks < 100; y += ys, ++ticks) {
-    cv::line(img, pt(t0, y), pt(t1, y), {235, 235, 235}, 1);
-    text(img, fmt("%.3g", y), pt(t0, y) + cv::Point(-58, 5), 0.42);
-  }
-  const double xs = tick_step(t1 - t0, 6);
-  ticks = 0;
-  for (double x = 0; x <= t1 - t0 + 1e-9 && ticks < 100; x += xs, ++ticks) {
-    cv::line(img, pt(t0 + x, 0), pt(t0 + x, 0) + cv::Point(0, 5), {40, 40, 40}, 1);
-    text(img, fmt("%g", x), pt(t0 + x, 0) + cv::Point(-8, 22), 0.42);
-  }
-  text(img, "time [s]", {plot.x + plot.width / 2 - 30, plot.y + plot.height + 44}, 0.45);
-  text(img, "translational error [m] (thin: rmse)", {plot.x + 6, plot.y + 18}, 0.45);
+  const ErrorAxes pt{plot, t0, t1, ytop};
+  draw_error_axes(img, pt, "translational error [m] (thin: rmse)");
   for (std::size_t k = 0; k < estimates.size(); ++k) {
     const auto& r = estimates[k].result;
     std::vector<cv::Point> line;
@@ -376,24 +389,8 @@ cv::Mat render_ate_plot(const Trajectory& gt, const AteResult& r, const AtePlotO
   DS3D_CHECK(std::isfinite(ytop) && std::isfinite(t1 - t0),
              "ds3d::render_ate_plot: result: the error range ", ytop, " or the time span ", t1 - t0,
              " s is not finite");
-  const auto pt = [&](double t, double e) {
-    return cv::Point(to_px(plot.x + (t - t0) / (t1 - t0) * plot.width),
-                     to_px(plot.y + plot.height - e / ytop * plot.height));
-  };
-  const double ys = tick_step(ytop, 5);
-  int ticks = 0;  // bounded even if rounding stalls the sum
-  for (double y = 0; y <= ytop + 1e-12 && ticks < 100; y += ys, ++ticks) {
-    cv::line(img, pt(t0, y), pt(t1, y), {235, 235, 235}, 1);
-    text(img, fmt("%.3g", y), pt(t0, y) + cv::Point(-58, 5), 0.42);
-  }
-  const double xs = tick_step(t1 - t0, 6);
-  ticks = 0;
-  for (double x = 0; x <= t1 - t0 + 1e-9 && ticks < 100; x += xs, ++ticks) {
-    cv::line(img, pt(t0 + x, 0), pt(t0 + x, 0) + cv::Point(0, 5), {40, 40, 40}, 1);
-    text(img, fmt("%g", x), pt(t0 + x, 0) + cv::Point(-8, 22), 0.42);
-  }
-  text(img, "time [s]", {plot.x + plot.width / 2 - 30, plot.y + plot.height + 44}, 0.45);
-  text(img, "translational error [m]", {plot.x + 6, plot.y + 18}, 0.45);
+  const ErrorAxes pt{plot, t0, t1, ytop};
+  draw_error_axes(img, pt, "translational error [m]");
   for (std::size_t k = 0; k + 1 < r.matches.size(); ++k) {
     const auto& a = r.matches[k];
     const auto& b = r.matches[k + 1];
