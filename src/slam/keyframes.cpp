@@ -48,6 +48,16 @@ bool SlamFrontend::Impl::need_keyframe(const FrameData& f, int inliers) const {
   return (c1a || c1b || c1c) && c2;
 }
 
+namespace {
+
+// Keypoint i of `d` with its depth, in the camera frame [m].
+Eigen::Vector3d back_project(const StereoIntrinsics& k, const FrameData& d, std::size_t i) {
+  const double z = d.depth[i];
+  return {(d.uv[i].x() - k.cx) / k.fx * z, (d.uv[i].y() - k.cy) / k.fy * z, z};
+}
+
+}  // namespace
+
 int SlamFrontend::Impl::add_keyframe(const FrameData& f, const Eigen::Isometry3d& T_cw,
                                      const FrameInput& in) {
   Keyframe kf;
@@ -83,10 +93,7 @@ int SlamFrontend::Impl::add_keyframe(const FrameData& f, const Eigen::Isometry3d
     if (K.data.points[i] >= 0) continue;
     int pid = -1;
     MapPoint p;
-    const double z = K.data.depth[i];
-    const Eigen::Vector3d pc((K.data.uv[i].x() - k.cx) / k.fx * z,
-                             (K.data.uv[i].y() - k.cy) / k.fy * z, z);
-    p.pos = T_wc * pc;
+    p.pos = T_wc * back_project(k, K.data, i);
     p.desc = row_descriptor(K.data.desc, static_cast<int>(i));
     p.obs.emplace_back(K.id, static_cast<int>(i));
     p.ref_kf = K.id;
@@ -146,20 +153,16 @@ int SlamFrontend::Impl::confirm_far_points(Keyframe& K) {
   Keyframe& P = keyframes[static_cast<std::size_t>(pi)];
   const Eigen::Isometry3d P_wc = P.T_cw.inverse();
   const Eigen::Isometry3d K_wc = K.T_cw.inverse();
-  const auto back_project = [this](const FrameData& d, std::size_t i) {
-    const double z = d.depth[i];
-    return Eigen::Vector3d((d.uv[i].x() - k.cx) / k.fx * z, (d.uv[i].y() - k.cy) / k.fy * z, z);
-  };
   int made = 0;
   for (std::size_t j = 0; j < P.data.size(); ++j) {
     if (P.data.points[j] >= 0 || P.data.depth[j] <= P.data.close_depth) continue;
-    const Eigen::Vector3d x_w = P_wc * back_project(P.data, j);
+    const Eigen::Vector3d x_w = P_wc * back_project(k, P.data, j);
     const int i = match_far_point(K, K.T_cw * x_w, P.data.octave[j],
                                   P.data.desc.ptr<std::uint8_t>(static_cast<int>(j)));
     if (i < 0) continue;
     const auto si = static_cast<std::size_t>(i);
     MapPoint p;
-    p.pos = 0.5 * (x_w + K_wc * back_project(K.data, si));
+    p.pos = 0.5 * (x_w + K_wc * back_project(k, K.data, si));
     p.desc = row_descriptor(K.data.desc, i);
     p.obs = {{P.id, static_cast<int>(j)}, {K.id, i}};
     p.ref_kf = K.id;
