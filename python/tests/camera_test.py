@@ -42,7 +42,7 @@ def test_every_camera_argument_takes_a_camera(tmp_path):
     feats = [ds3d.OrbExtractor().extract(f["rgb"], f["depth"], c)
              for c in (cam, cam.to_dict())]
     assert np.array_equal(feats[0].keypoints, feats[1].keypoints)
-    objs = ds3d.make_dynamic_source("geometric").detect(f["rgb"], f["depth"], f["timestamp"], cam)
+    objs = ds3d.make_dynamic_source("geometric").detect(f["rgb"], f["depth"], cam, f["timestamp"])
     assert isinstance(objs, ds3d.DynamicObjects)
     assert isinstance(ds3d.image_boxes(objs, cam), list)
     assert ds3d.keypoint_array(feats[0], f["depth"], cam).shape[1] == 3

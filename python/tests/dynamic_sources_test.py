@@ -31,32 +31,32 @@ def test_file_source_round_trip(detections):
     rgb = np.zeros((480, 640, 3), np.uint8)
     src = ds3d.FileSource(detections)
     assert src.name == "file" and isinstance(src, ds3d.DynamicObjectSource)
-    o = src.detect(rgb, None, 1.005, CAM)
+    o = src.detect(rgb, None, CAM, 1.005)
     assert np.allclose(o.boxes_2d, [[10, 20, 110, 220]]) and np.allclose(o.scores, [0.9])
     assert o.boxes_3d.shape == (1, 8, 3) and np.allclose(o.boxes_3d[0], CORNERS)
     assert o.pixel_mask is None and not o.empty
-    assert src.detect(rgb, None, 1.5, CAM).empty  # no line within max_dt = 0.02 s
-    assert src.detect(rgb, None, 2.0, CAM).empty  # a line with no boxes
+    assert src.detect(rgb, None, CAM, 1.5).empty  # no line within max_dt = 0.02 s
+    assert src.detect(rgb, None, CAM, 2.0).empty  # a line with no boxes
     assert (src.num_matched, src.num_unmatched) == (2, 1)
     p = ds3d.FileSourceParams()
     p.classes = ["person"]
-    only = ds3d.FileSource(str(detections), p).detect(rgb, None, 1.0, CAM)
+    only = ds3d.FileSource(str(detections), p).detect(rgb, None, CAM, 1.0)
     assert len(only.boxes_2d) == 1 and len(only.boxes_3d) == 0
     p = ds3d.FileSourceParams()
     p.min_score = 0.95
-    assert ds3d.FileSource(detections, p).detect(rgb, None, 1.0, CAM).empty
+    assert ds3d.FileSource(detections, p).detect(rgb, None, CAM, 1.0).empty
     p = ds3d.FileSourceParams()
     p.max_dt = 0.6
-    assert not ds3d.FileSource(detections, p).detect(rgb, None, 1.5, CAM).empty
-    via_spec = ds3d.make_dynamic_source(f"file:{detections}").detect(rgb, None, 1.0, CAM)
+    assert not ds3d.FileSource(detections, p).detect(rgb, None, CAM, 1.5).empty
+    via_spec = ds3d.make_dynamic_source(f"file:{detections}").detect(rgb, None, CAM, 1.0)
     assert np.array_equal(via_spec.boxes_3d, o.boxes_3d)
-    text = ds3d.FileSource.from_text(detections.read_text()).detect(rgb, None, 1.0, CAM)
+    text = ds3d.FileSource.from_text(detections.read_text()).detect(rgb, None, CAM, 1.0)
     assert np.array_equal(text.boxes_2d, o.boxes_2d)
 
 
 def test_image_boxes_and_keypoint_array(detections):
     rgb = textured(4)
-    o = ds3d.FileSource(detections).detect(rgb, None, 1.0, CAM)
+    o = ds3d.FileSource(detections).detect(rgb, None, CAM, 1.0)
     boxes = ds3d.image_boxes(o, CAM)
     assert len(boxes) == 2
     assert (boxes[0].x_min, boxes[0].y_max, boxes[0].score) == pytest.approx((10, 220, 0.9))
@@ -99,7 +99,7 @@ def test_hdbscan_masker_flags_the_near_object_in_its_box():
     box = np.array([[220, 100, 420, 400]], np.float32)
     objects = ds3d.DynamicObjects(boxes_2d=box, scores=[0.9])
     masker = ds3d.HdbscanMasker()
-    dyn = masker.mask(rgb, depth, f, objects, CAM, timestamp=0.0)
+    dyn = masker.mask(rgb, depth, CAM, f, objects, timestamp=0.0)
     assert dyn.dtype == bool and dyn.shape == (len(f),)
     on_object = (kp[:, 0] > 244) & (kp[:, 0] < 396) & (kp[:, 1] > 124) & (kp[:, 1] < 376)
     in_box = (kp[:, 0] >= 220) & (kp[:, 0] <= 420) & (kp[:, 1] >= 100) & (kp[:, 1] <= 400)
@@ -111,9 +111,9 @@ def test_hdbscan_masker_flags_the_near_object_in_its_box():
     # A pixel mask alone marks exactly the keypoints on its non-zero pixels.
     mask = np.zeros((480, 640), np.uint8)
     mask[:, :320] = 1
-    dyn2 = ds3d.HdbscanMasker().mask(rgb, depth, f, ds3d.DynamicObjects(pixel_mask=mask), CAM)
+    dyn2 = ds3d.HdbscanMasker().mask(rgb, depth, CAM, f, ds3d.DynamicObjects(pixel_mask=mask))
     assert np.array_equal(dyn2, np.round(kp[:, 0]) < 320)
-    assert ds3d.HdbscanMasker().mask(rgb, depth, f, ds3d.DynamicObjects(), CAM).sum() == 0
+    assert ds3d.HdbscanMasker().mask(rgb, depth, CAM, f, ds3d.DynamicObjects()).sum() == 0
 
 
 def test_bad_input_errors(detections, tmp_path):
@@ -136,16 +136,23 @@ def test_bad_input_errors(detections, tmp_path):
         ds3d.DynamicObjects(pixel_mask=np.zeros((480, 640), bool))
     src = ds3d.FileSource(detections)
     with pytest.raises(ValueError, match="detect \\(file\\): depth .*float32"):
-        src.detect(rgb, np.zeros((480, 640), np.float32), 1.0, CAM)
+        src.detect(rgb, np.zeros((480, 640), np.float32), CAM, 1.0)
     with pytest.raises(ValueError, match="timestamp must be finite"):
-        src.detect(rgb, None, float("nan"), CAM)
+        src.detect(rgb, None, CAM, float("nan"))
     with pytest.raises(ValueError, match="camera must be a dict"):
-        src.detect(rgb, None, 1.0, 525.0)
+        src.detect(rgb, None, [525.0], 1.0)
+    # the (rgb, depth, timestamp, camera) order of earlier releases: a TypeError naming the order
+    with pytest.raises(TypeError, match=r"depth: object, camera: object, timestamp: float"):
+        src.detect(rgb, None, 1.0, CAM)
+    with pytest.raises(TypeError, match=r"got float\); the order is detect\(rgb, depth, camera, timestamp"):
+        src.detect(rgb, None, 1.0, 3)  # no camera at all
     f = ds3d.OrbExtractor().extract(rgb, None, CAM)
+    with pytest.raises(TypeError, match=r"got OrbFeatures\); the order is mask\(rgb, depth, camera, features"):
+        ds3d.HdbscanMasker().mask(rgb, None, f, f, ds3d.DynamicObjects())
     with pytest.raises(ValueError, match="keypoint_array: depth is 10x10"):
         ds3d.keypoint_array(f, np.zeros((10, 10), np.uint16), CAM)
     with pytest.raises(ValueError, match="objects.pixel_mask is 10x10"):
-        ds3d.HdbscanMasker().mask(rgb, None, f, ds3d.DynamicObjects(pixel_mask=np.zeros((10, 10), np.uint8)), CAM)
+        ds3d.HdbscanMasker().mask(rgb, None, CAM, f, ds3d.DynamicObjects(pixel_mask=np.zeros((10, 10), np.uint8)))
     bad = ds3d.DynamicFilterParams()
     bad.min_cluster_size = 0
     with pytest.raises(ValueError, match="min_cluster_size"):
@@ -162,7 +169,7 @@ def test_bad_input_errors(detections, tmp_path):
         ds3d.FileSource(broken)
     with pytest.raises(ValueError, match="bogus"):
         ds3d.make_dynamic_source("bogus")
-    assert ds3d.make_dynamic_source("none").detect(rgb, None, 0.0, CAM).empty
+    assert ds3d.make_dynamic_source("none").detect(rgb, None, CAM, 0.0).empty
 
 
 def test_sources_keep_copies_not_views_of_the_frames():
@@ -176,7 +183,7 @@ def test_sources_keep_copies_not_views_of_the_frames():
         out = []
         for f in frames:
             rgb, depth = f["rgb"].copy(), f["depth"].copy()
-            out.append(src.detect(rgb, depth, f["timestamp"], CAM).boxes_3d)
+            out.append(src.detect(rgb, depth, CAM, f["timestamp"]).boxes_3d)
             if scribble:
                 rgb[:] = 7
                 depth[:] = 1234
@@ -197,7 +204,7 @@ def test_make_dynamic_source_builds_htx_and_composites():
         src = ds3d.make_dynamic_source(spec, gate=gate, weights=weights, min_score=0.0,
                                        report_floor=True)
         assert src.name == (names[gate] if gate else spec)
-        o = src.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
+        o = src.detect(f["rgb"], f["depth"], CAM, f["timestamp"])
         assert o.boxes_3d.shape[1:] == (8, 3) and np.all(np.isfinite(o.boxes_3d))
         if spec == "htx" and gate is None:  # one metric uncertainty per box, the floor of the frame
             assert np.allclose(o.boxes_3d_margin, 0.15) and len(o.boxes_3d_margin) == len(o.boxes_3d)
@@ -216,12 +223,12 @@ def test_make_dynamic_source_builds_htx_and_composites():
         ds3d.make_dynamic_source("htx", weights=weights, detect_every=0)
     loose = ds3d.make_dynamic_source("htx", weights=weights, min_score=0.0,
                                      box_uncertainty=float("inf"))
-    assert np.all(np.isinf(loose.detect(f["rgb"], f["depth"], f["timestamp"], CAM).boxes_3d_margin))
+    assert np.all(np.isinf(loose.detect(f["rgb"], f["depth"], CAM, f["timestamp"]).boxes_3d_margin))
     with pytest.raises(ValueError, match="box_uncertainty"):
         ds3d.make_dynamic_source("htx", weights=weights, box_uncertainty=-1.0)
     # The floor is reported only on request (report_floor, off by default).
     plain = ds3d.make_dynamic_source("htx", weights=weights, min_score=0.0)
-    assert plain.detect(f["rgb"], f["depth"], f["timestamp"], CAM).support_plane is None
+    assert plain.detect(f["rgb"], f["depth"], CAM, f["timestamp"]).support_plane is None
     with pytest.raises(ValueError, match="hold_frames"):
         ds3d.make_dynamic_source("htx", weights=weights, hold_frames=-1)
     with pytest.raises(ValueError, match="segment_frames"):
@@ -239,7 +246,7 @@ def test_frame_smoothing_keeps_the_boxes():
     changed = 0
     for i in range(len(scene)):
         f = scene.render(i)
-        a, b = (s.detect(f["rgb"], f["depth"], f["timestamp"], CAM, index=i)
+        a, b = (s.detect(f["rgb"], f["depth"], CAM, f["timestamp"], index=i)
                 for s in (one, smooth))
         assert np.allclose(a.boxes_3d, b.boxes_3d)
         assert np.all(np.isfinite(b.foreground_points))
@@ -259,8 +266,8 @@ def test_hold_carries_missed_boxes_of_seated_people():
     carried = 0
     for i in range(len(scene)):
         f = scene.render(i)
-        a = plain.detect(f["rgb"], f["depth"], f["timestamp"], CAM, index=i)
-        b = held.detect(f["rgb"], f["depth"], f["timestamp"], CAM, index=i)
+        a = plain.detect(f["rgb"], f["depth"], CAM, f["timestamp"], index=i)
+        b = held.detect(f["rgb"], f["depth"], CAM, f["timestamp"], index=i)
         assert len(b.boxes_3d) >= len(a.boxes_3d)
         assert np.allclose(b.boxes_3d[:len(a.boxes_3d)], a.boxes_3d)
         assert b.boxes_3d_segmented.all() and len(b.boxes_3d_margin) == len(b.boxes_3d)
@@ -275,7 +282,7 @@ def test_segmentation_fields_and_the_masker_check():
     weights = pathlib.Path(__file__).resolve().parents[2] / "models" / "htx_lite_fast.safetensors"
     f = ds3d.synth.Scene("walking_xyz", frames=1, seed=7, humans=1).render(0)
     src = ds3d.make_dynamic_source("htx", weights=weights)
-    o = src.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
+    o = src.detect(f["rgb"], f["depth"], CAM, f["timestamp"])
     assert len(o.boxes_3d) > 0 and o.boxes_3d_segmented.dtype == bool and o.boxes_3d_segmented.all()
     fg = o.foreground_points
     assert fg.shape[1] == 3 and len(fg) > 20 and fg.dtype == np.float32
@@ -283,27 +290,27 @@ def test_segmentation_fields_and_the_masker_check():
     v = np.round(525 * fg[:, 1] / fg[:, 2] + 239.5).astype(int).clip(0, 479)
     assert (f["dynamic_mask"][v, u] > 0).mean() > 0.8  # the points lie on the walker
     off = ds3d.make_dynamic_source("htx", weights=weights, segment=False)
-    o2 = off.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
+    o2 = off.detect(f["rgb"], f["depth"], CAM, f["timestamp"])
     assert len(o2.foreground_points) == 0 and len(o2.boxes_3d_segmented) == 0
     bg = o.background_points  # the other input points of the network
     assert bg.shape[1] == 3 and len(bg) > len(fg) and len(o2.background_points) == 0
     assert np.allclose(o2.boxes_3d, o.boxes_3d)
     # The masker: the same box with no foreground near the walker keeps everything static.
     feats = ds3d.OrbExtractor().extract(f["rgb"], f["depth"], CAM)
-    with_fg = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, o, CAM)
+    with_fg = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], CAM, feats, o)
     far = ds3d.DynamicObjects(boxes_3d=o.boxes_3d, boxes_3d_margin=o.boxes_3d_margin,
                               foreground_points=[[9.0, 9.0, 9.0]],
                               boxes_3d_segmented=np.ones(len(o.boxes_3d), bool))
     assert with_fg.sum() > 0
-    assert ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, far, CAM).sum() == 0
+    assert ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], CAM, feats, far).sum() == 0
     kp = feats.keypoints.round().astype(int)
     on = f["dynamic_mask"][kp[:, 1].clip(0, 479), kp[:, 0].clip(0, 639)] > 0
-    without = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, o2, CAM)
+    without = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], CAM, feats, o2)
     assert on[with_fg].mean() > on[without].mean() + 0.1  # fewer keypoints off the walker
     # With the floor reported too, the dynamic keypoints are (nearly) all on the walker.
     floor = ds3d.make_dynamic_source("htx", weights=weights, report_floor=True)
-    o3 = floor.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
-    dyn3 = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, o3, CAM)
+    o3 = floor.detect(f["rgb"], f["depth"], CAM, f["timestamp"])
+    dyn3 = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], CAM, feats, o3)
     assert dyn3.sum() > 10 and on[dyn3].mean() > 0.9
     with pytest.raises(ValueError, match="boxes_3d_segmented"):
         ds3d.DynamicObjects(boxes_3d=o.boxes_3d, boxes_3d_segmented=[True] * (len(o.boxes_3d) + 1))
@@ -315,16 +322,16 @@ def test_segmentation_fields_and_the_masker_check():
     # (nearest foreground no farther than nearest background), so the radius alone decides.
     kw = dict(boxes_3d=o.boxes_3d, boxes_3d_margin=o.boxes_3d_margin, foreground_points=fg,
               boxes_3d_segmented=np.ones(len(o.boxes_3d), bool))
-    radius_only = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, ds3d.DynamicObjects(**kw), CAM)
+    radius_only = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], CAM, feats, ds3d.DynamicObjects(**kw))
     tie = ds3d.DynamicObjects(background_points=fg, **kw)
     assert tie.background_points.shape == fg.shape
-    assert (ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, tie, CAM) == radius_only).all()
+    assert (ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], CAM, feats, tie) == radius_only).all()
     # The network's own background points can only take keypoints away (inside the boxes).
     inside = ds3d.make_dynamic_source("htx", weights=weights, segment_outside_boxes=False)
-    o4 = inside.detect(f["rgb"], f["depth"], f["timestamp"], CAM)
+    o4 = inside.detect(f["rgb"], f["depth"], CAM, f["timestamp"])
     assert not o4.segment_outside_boxes and len(o4.foreground_points) >= len(fg)
     assert len(o4.foreground_points) + len(o4.background_points) == len(fg) + len(bg)
-    in_boxes = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, o4, CAM)
+    in_boxes = ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], CAM, feats, o4)
     assert not (in_boxes & ~radius_only).any()
     with pytest.raises(ValueError, match="foreground_radius"):
         ds3d.DynamicObjects(foreground_radius=0.0)
@@ -339,7 +346,7 @@ def test_segmentation_fields_and_the_masker_check():
     kw_all = dict(kw, background_points=bg, segment_plane=o.segment_plane)
     rebuilt = ds3d.DynamicObjects(segment_outside_boxes=True, **kw_all)
     assert rebuilt.segment_outside_boxes and np.allclose(rebuilt.segment_plane, o.segment_plane)
-    assert (ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], feats, rebuilt, CAM) == with_fg).all()
+    assert (ds3d.HdbscanMasker().mask(f["rgb"], f["depth"], CAM, feats, rebuilt) == with_fg).all()
     assert ds3d.DynamicObjects().segment_plane is None
     assert not ds3d.DynamicObjects().segment_outside_boxes
     for bad in ([0, 0, 0, 1], [0, np.nan, 0, 1], [0, 1, 0]):

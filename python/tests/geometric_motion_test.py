@@ -24,7 +24,7 @@ def run(scenario, frames, **params):
     scene = ds3d.synth.Scene(scenario, frames=frames, seed=1)
     for i in range(frames):
         f = scene.render(i)
-        yield f, src.detect(f["rgb"], f["depth"], f["timestamp"], CAM, index=i), src
+        yield f, src.detect(f["rgb"], f["depth"], CAM, f["timestamp"], index=i), src
 
 
 def test_walkers_are_found_where_the_generator_put_them():
@@ -95,11 +95,11 @@ def test_params_stats_and_errors():
     assert src.last_warp_tested.shape == (0, 2)
     assert src.last_stats.as_dict()["num_objects"] == 0
     rgb = np.zeros((480, 640, 3), np.uint8)
-    assert src.detect(rgb, None, 0.0, CAM).empty  # no depth: nothing
+    assert src.detect(rgb, None, CAM, 0.0).empty  # no depth: nothing
     with pytest.raises(ValueError, match="GeometricMotionSource.*|detect \\(geometric\\): depth"):
-        src.detect(rgb, np.zeros((480, 640), np.int32), 0.1, CAM)
+        src.detect(rgb, np.zeros((480, 640), np.int32), CAM, 0.1)
     with pytest.raises(ValueError, match="rgb is 480x640"):
-        src.detect(rgb, None, 0.1, dict(CAM, height=240))
+        src.detect(rgb, None, dict(CAM, height=240), 0.1)
     for field, value in (("num_features", 0), ("reference_gap", 0), ("match_ratio", 1.5),
                          ("min_pose_inliers", 3), ("image_scale", 0.0), ("min_support", 0.0),
                          ("moving_chi2", float("nan")), ("max_speed", -1.0),

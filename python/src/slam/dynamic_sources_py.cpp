@@ -156,6 +156,18 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
   return o;
 }
 
+// Every per-frame call of the bindings takes (rgb, depth, camera, ...) in that order, as the C++
+// detect(frame, camera) / mask(frame, camera, ...) do. A number or ORB features where the camera
+// belongs is a call in another order: say which order, not only that the camera is malformed.
+void check_camera_position(const char* fn, const char* signature, const py::object& camera) {
+  const bool number = py::isinstance<py::float_>(camera) || py::isinstance<py::int_>(camera);
+  if (number || py::isinstance<ds3d::slam::OrbFeatures>(camera)) {
+    throw py::type_error(std::string(fn) + ": camera must be a ds3d.Camera, preset name, dict or "
+                         "camera.txt path (got " + ds3d::py_camera::type_name(camera) +
+                         "); the order is " + signature);
+  }
+}
+
 // numpy images (viewed, not copied; the arrays are kept alive here) -> FrameInput, checked
 // against the camera; errors name `fn`.
 struct NumpyFrame {
@@ -179,8 +191,9 @@ struct NumpyFrame {
 
 // Shared by every source: numpy images -> FrameInput -> detect() without the GIL.
 DynamicObjects run_detect(DynamicObjectSource& src, const py::object& rgb, const py::object& depth,
-                          double timestamp, const py::object& camera, std::size_t index) {
+                          const py::object& camera, double timestamp, std::size_t index) {
   const std::string name = "ds3d.DynamicObjectSource.detect (" + src.name() + ")";
+  check_camera_position(name.c_str(), "detect(rgb, depth, camera, timestamp, index=0)", camera);
   NumpyFrame f(name.c_str(), rgb, depth, timestamp, camera, index);
   const py::gil_scoped_release release;
   // Sources may keep the frame's images as history (GeometricMotionSource copies the depth it
@@ -327,17 +340,15 @@ void bind_dynamic_sources(py::module_& m) {
       "Base of the dynamic-object sources (file, geometric, htx, composites; "
       "include/ds3d/slam_frontend.hpp). Sources keep state across frames: call detect() in frame "
       "order on one sequence per instance.")
-      .def("detect", &run_detect, py::arg("rgb"), py::arg("depth"), py::arg("timestamp"),
-           py::arg("camera"), py::arg("index") = 0,
+      .def("detect", &run_detect, py::arg("rgb"), py::arg("depth"), py::arg("camera"),
+           py::arg("timestamp"), py::arg("index") = 0,
            "Objects in one frame. rgb: (H, W, 3) uint8 BGR or (H, W) uint8; depth: (H, W) uint16\n"
-           "(camera['depth_scale'] units per metre, 0 = missing) or None; timestamp [s], finite,\n"
-           "non-decreasing; camera: dict (as ds3d.camera_preset), preset name or camera.txt path,\n"
-           "of the image size; index: position in the sequence (seeds the htx draw). Returns\n"
-           "ds3d.DynamicObjects; releases the GIL. The source gets its own copy of the images (it "
-           "may\n"
-           "keep past frames), so the arrays may be reused afterwards. ValueError for a wrong "
-           "dtype,\n"
-           "shape or size.")
+           "(camera depth_scale units per metre, 0 = missing) or None; camera: ds3d.Camera, preset\n"
+           "name, dict or camera.txt path, of the image size; timestamp [s], finite,\n"
+           "non-decreasing; index: position in the sequence (seeds the htx draw). Returns\n"
+           "ds3d.DynamicObjects; releases the GIL. The source gets its own copy of the images (it\n"
+           "may keep past frames), so the arrays may be reused afterwards. ValueError for a wrong\n"
+           "dtype, shape or size; TypeError for a number or ORB features in the camera's place.")
       .def_property_readonly("name", &DynamicObjectSource::name,
                              "short name, e.g. 'file', 'htx+geometric'");
 
@@ -385,9 +396,11 @@ void bind_dynamic_sources(py::module_& m) {
       .def(
           "mask",
           [](HdbscanMasker& masker, const py::object& rgb, const py::object& depth,
-             const ds3d::slam::OrbFeatures& features, const DynamicObjects& objects,
-             const py::object& camera, double timestamp, std::size_t index) {
+             const py::object& camera, const ds3d::slam::OrbFeatures& features,
+             const DynamicObjects& objects, double timestamp, std::size_t index) {
             constexpr const char* fn = "ds3d.HdbscanMasker.mask";
+            check_camera_position(
+                fn, "mask(rgb, depth, camera, features, objects, timestamp=0.0, index=0)", camera);
             const NumpyFrame f(fn, rgb, depth, timestamp, camera, index);
             if (!objects.pixel_mask.empty()) {
               pu::check_size(fn, "objects.pixel_mask", objects.pixel_mask, f.cam);
@@ -401,8 +414,8 @@ void bind_dynamic_sources(py::module_& m) {
             for (std::size_t i = 0; i < out.size(); ++i) a.mutable_data()[i] = out[i] != 0;
             return a;
           },
-          py::arg("rgb"), py::arg("depth"), py::arg("features"), py::arg("objects"),
-          py::arg("camera"), py::arg("timestamp") = 0.0, py::arg("index") = 0,
+          py::arg("rgb"), py::arg("depth"), py::arg("camera"), py::arg("features"),
+          py::arg("objects"), py::arg("timestamp") = 0.0, py::arg("index") = 0,
           "(N,) bool, True = keypoint i of `features` (ds3d.OrbExtractor.extract of this frame)\n"
           "lies on a moving object of `objects`. Images and camera as DynamicObjectSource.detect.")
       .def_property_readonly(

@@ -192,7 +192,7 @@ void bind_geometric_motion(py::module_& m) {
       "The 'geometric' dynamic-object source: moving objects from multi-view geometry alone, no\n"
       "learned weights (ORB matches + PnP-RANSAC pose, chi2 test of each keypoint's 3-D residual,\n"
       "HDBSCAN clusters with a support test, dense depth-warp evidence, confirmation over frames;\n"
-      "include/ds3d/geometric_motion.hpp). detect(rgb, depth, timestamp, camera) as every\n"
+      "include/ds3d/geometric_motion.hpp). detect(rgb, depth, camera, timestamp) as every\n"
       "ds3d.DynamicObjectSource; returns DynamicObjects with boxes_3d (camera frame). Keeps "
       "state:\n"
       "frames in order, one sequence per instance. Deterministic.")
