@@ -55,8 +55,10 @@ test-python: build
 test-consumer: build
 	scripts/test-consumer.sh $(BUILD_DIR)
 
+# The pip build gets the same CMake flags as build/, so that ccache (when installed) reuses its
+# objects instead of compiling the extension a second time.
 test-pip: deps
-	PYTHON=$(PYTHON) JOBS=$(JOBS) scripts/test-pip-install.sh
+	PYTHON=$(PYTHON) JOBS=$(JOBS) DS3D_CMAKE_ARGS="$(CMAKE_FLAGS)" scripts/test-pip-install.sh
 
 test-examples: build
 	PYTHONPATH=$(CURDIR)/$(BUILD_DIR)/python $(PYTHON) examples/cluster_bench/sweep.py --quick \

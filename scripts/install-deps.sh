@@ -12,7 +12,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   pybind11-dev python3-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib
   python3-setuptools python3-pip python3-wheel python3-venv
-  clang-format clang-tidy
+  clang-format clang-tidy ccache
 )
 # Per-component package lists: every non-comment word in scripts/deps/*.txt.
 for list in "$(dirname "$0")"/deps/*.txt; do
