@@ -241,12 +241,7 @@ TrackResult SlamFrontend::track(const cv::Mat& rgb, const cv::Mat& depth, double
 }
 
 TrackResult SlamFrontend::track(const RgbdFrame& frame) {
-  FrameInput in;
-  in.index = frame.index;
-  in.timestamp = frame.timestamp;
-  in.rgb = frame.rgb;
-  in.depth = frame.depth;
-  PreparedFrame pf = extract(std::move(in));
+  PreparedFrame pf = extract(to_frame_input(frame));
   detect_dynamic(pf);
   filter_dynamic(pf);
   return track_prepared(std::move(pf));

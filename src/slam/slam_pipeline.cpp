@@ -174,13 +174,7 @@ std::vector<TrackResult> run_dataset(SlamFrontend& slam, const RgbdDataset& data
   std::size_t i = 0;
   const auto next = [&]() -> std::optional<FrameInput> {
     if (i >= n) return std::nullopt;
-    RgbdFrame f = dataset.frame(i++);
-    FrameInput in;
-    in.index = f.index;
-    in.timestamp = f.timestamp;
-    in.rgb = std::move(f.rgb);
-    in.depth = std::move(f.depth);
-    return in;
+    return to_frame_input(dataset.frame(i++));
   };
   return run_pipeline(slam, next, on_result, options);
 }

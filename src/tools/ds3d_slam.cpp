@@ -502,12 +502,7 @@ int run(const Args& a) {
       return std::nullopt;
     }
     ++next_index;
-    ds3d::slam::FrameInput in;
-    in.index = f.index;
-    in.timestamp = f.timestamp;
-    in.rgb = std::move(f.rgb);
-    in.depth = std::move(f.depth);
-    return in;
+    return ds3d::slam::to_frame_input(std::move(f));
   };
   ds3d_slam_tool::install_stop_handler();
   try {

@@ -32,6 +32,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -295,6 +296,12 @@ class SlamFrontend {
 /// Drops the `tracked` flags: the poses as a ds3d::Trajectory (for write_tum_trajectory and
 /// evaluate_ate).
 [[nodiscard]] Trajectory to_trajectory(const std::vector<FramePose>& poses);
+
+/// A dataset frame as tracking input: index, rgb timestamp and both images (moved, not copied;
+/// `depth_timestamp` is dropped).
+[[nodiscard]] inline FrameInput to_frame_input(RgbdFrame frame) {
+  return FrameInput{frame.index, frame.timestamp, std::move(frame.rgb), std::move(frame.depth)};
+}
 
 /// Options of run_pipeline.
 struct PipelineOptions {

@@ -210,13 +210,7 @@ py::dict run_slam(const py::object& dataset_dir, const py::object& camera, std::
   // read so far are still tracked and finished.
   const auto next = [&]() -> std::optional<ds3d::slam::FrameInput> {
     if (next_index >= total || monitor.stop_requested()) return std::nullopt;
-    ds3d::RgbdFrame f = ds.frame(next_index++);
-    ds3d::slam::FrameInput in;
-    in.index = f.index;
-    in.timestamp = f.timestamp;
-    in.rgb = std::move(f.rgb);
-    in.depth = std::move(f.depth);
-    return in;
+    return ds3d::slam::to_frame_input(ds.frame(next_index++));
   };
   {
     const py::gil_scoped_release release;
