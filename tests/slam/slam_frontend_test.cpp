@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -75,6 +77,23 @@ SlamRun run(const std::vector<ds3d::synth::SynthFrame>& frames, FrontendConfig c
   EXPECT_EQ(r.keyframe_frames.size(), slam.num_keyframes());
   r.culled = slam.culled_keyframes();
   return r;
+}
+
+TEST(SlamFrontend, ToFrameInputMovesTheImagesAndKeepsIndexAndTimestamp) {
+  ds3d::RgbdFrame f;
+  f.index = 7;
+  f.timestamp = 12.5;
+  f.depth_timestamp = 12.52;
+  f.rgb = cv::Mat(4, 6, CV_8UC3, cv::Scalar(1, 2, 3));
+  f.depth = cv::Mat(4, 6, CV_16UC1, cv::Scalar(5000));
+  const uchar* rgb_data = f.rgb.data;
+  const uchar* depth_data = f.depth.data;
+  const ds3d::slam::FrameInput in = ds3d::slam::to_frame_input(std::move(f));
+  EXPECT_EQ(in.index, 7U);
+  EXPECT_EQ(in.timestamp, 12.5);     // the rgb timestamp, not the depth one
+  EXPECT_EQ(in.rgb.data, rgb_data);  // moved, not copied
+  EXPECT_EQ(in.depth.data, depth_data);
+  EXPECT_EQ(in.depth.at<std::uint16_t>(3, 5), 5000);
 }
 
 TEST(SlamFrontend, StaticRoomIsAccurate) {
