@@ -152,26 +152,51 @@ DS3D_NO_FP_CONTRACT Mat ball_group(const Mat& p, const Mat& centres, float r, Ei
 
 // The 3 nearest tokens of point (x, y, z) (lowest index first on ties) and their squared
 // distances; k = min(3, tokens) entries are valid.
-DS3D_NO_FP_CONTRACT void three_nn(const Mat& tokens, float x, float y, float z, Eigen::Index k,
-                                  Eigen::Index idx[3], float dist[3]) {
+namespace {
+
+// The three nearest of `count` candidate distances d2 (lowest index first on ties).
+void three_smallest(const float* d2, Eigen::Index count, Eigen::Index k, Eigen::Index* idx,
+                    float* dist) {
   for (int m = 0; m < 3; ++m) {
     idx[m] = 0;
     dist[m] = INFINITY;
   }
-  for (Eigen::Index j = 0; j < tokens.rows(); ++j) {
-    const float dx = x - tokens(j, 0), dy = y - tokens(j, 1), dz = z - tokens(j, 2);
-    const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
-    const float d2 = (xx + yy) + zz;
-    if (d2 < dist[k - 1]) {  // insert, keeping earlier (lower-index) entries first on ties
+  for (Eigen::Index j = 0; j < count; ++j) {
+    if (d2[j] < dist[k - 1]) {  // insert, keeping earlier (lower-index) entries first on ties
       Eigen::Index m = k - 1;
-      while (m > 0 && d2 < dist[m - 1]) {
+      while (m > 0 && d2[j] < dist[m - 1]) {
         dist[m] = dist[m - 1];
         idx[m] = idx[m - 1];
         --m;
       }
-      dist[m] = d2;
+      dist[m] = d2[j];
       idx[m] = j;
     }
+  }
+}
+
+}  // namespace
+
+DS3D_NO_FP_CONTRACT void three_nn(const Mat& tokens, const Mat& points, Eigen::Index k,
+                                  Eigen::Matrix<Eigen::Index, Eigen::Dynamic, 3, Eigen::RowMajor>& idx,
+                                  Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>& dist) {
+  const Eigen::Index t = tokens.rows();
+  idx.resize(points.rows(), 3);
+  dist.resize(points.rows(), 3);
+  const Eigen::ArrayXf tx = tokens.col(0), ty = tokens.col(1), tz = tokens.col(2);  // SoA
+  const float* px = tx.data();
+  const float* py = ty.data();
+  const float* pz = tz.data();
+  Eigen::ArrayXf d2(t);
+  float* pd = d2.data();
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const float x = points(i, 0), y = points(i, 1), z = points(i, 2);
+    for (Eigen::Index j = 0; j < t; ++j) {  // branch-free: vectorised (no FMA)
+      const float dx = x - px[j], dy = y - py[j], dz = z - pz[j];
+      const float xx = dx * dx, yy = dy * dy, zz = dz * dz;
+      pd[j] = (xx + yy) + zz;
+    }
+    three_smallest(pd, t, k, &idx(i, 0), &dist(i, 0));
   }
 }
 

@@ -121,10 +121,12 @@ void part_head(const Mat& p, const Mat& centres, const Mat& enc, const RowVec& s
   out.part_logits.resize(n, 4);
   const Eigen::Index k = std::min<Eigen::Index>(3, t);
   Mat hidden(n, c.part_hidden);
+  Eigen::Matrix<Eigen::Index, Eigen::Dynamic, 3, Eigen::RowMajor> nn;
+  Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor> nn_d2;
+  three_nn(centres, p, k, nn, nn_d2);
   for (Eigen::Index i = 0; i < n; ++i) {
-    Eigen::Index idx[3];
-    float dist[3];
-    three_nn(centres, p(i, 0), p(i, 1), p(i, 2), k, idx, dist);
+    const Eigen::Index* idx = &nn(i, 0);
+    const float* dist = &nn_d2(i, 0);
     float wt[3] = {0.0F, 0.0F, 0.0F};
     float wsum = 0.0F;
     for (Eigen::Index m = 0; m < k; ++m) {

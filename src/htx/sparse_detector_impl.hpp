@@ -97,10 +97,11 @@ DS3D_NO_FP_CONTRACT std::vector<std::int32_t> farthest_point_sample(const Mat& p
 // [begin[i], begin[i+1]).
 DS3D_NO_FP_CONTRACT Mat ball_group(const Mat& p, const Mat& centres, float r, Eigen::Index s,
                                    std::vector<Eigen::Index>& begin);
-// The 3 nearest tokens of point (x, y, z) (lowest index first on ties) and their squared
-// distances; k = min(3, tokens) entries are valid.
-DS3D_NO_FP_CONTRACT void three_nn(const Mat& tokens, float x, float y, float z, Eigen::Index k,
-                                  Eigen::Index idx[3], float dist[3]);
+// The 3 nearest tokens of every row of `points` (lowest index first on ties) and their squared
+// distances: row i of idx / dist, of which k = min(3, tokens) entries are valid.
+DS3D_NO_FP_CONTRACT void three_nn(const Mat& tokens, const Mat& points, Eigen::Index k,
+                                  Eigen::Matrix<Eigen::Index, Eigen::Dynamic, 3, Eigen::RowMajor>& idx,
+                                  Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>& dist);
 
 // ---- transformer.cpp: encoder, positional embedding, decoder ------------------------------
 
