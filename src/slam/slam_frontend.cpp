@@ -205,10 +205,18 @@ PreparedFrame SlamFrontend::extract(FrameInput frame) const {
   return pf;
 }
 
+void SlamFrontend::prepare_dynamic(PreparedFrame& frame) const {
+  const auto t0 = Clock::now();
+  frame.detection = impl_->source->prepare(frame.input, impl_->cfg.camera);
+  frame.times.prepare_ms = ms_since(t0);
+}
+
 void SlamFrontend::detect_dynamic(PreparedFrame& frame) {
   const auto t0 = Clock::now();
-  frame.objects = impl_->source->detect(frame.input, impl_->cfg.camera);
-  frame.times.detect_ms = ms_since(t0);
+  frame.objects =
+      impl_->source->detect_prepared(frame.input, impl_->cfg.camera, frame.detection.get());
+  frame.detection.reset();
+  frame.times.detect_ms = frame.times.prepare_ms + ms_since(t0);
 }
 
 void SlamFrontend::filter_dynamic(PreparedFrame& frame) {

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: Apache-2.0
 // SPDX-FileCopyrightText: 2026 ds3d authors
-// run_pipeline: the four stages of SlamFrontend in threads connected by bounded queues.
+// run_pipeline: the stages of SlamFrontend in threads connected by bounded queues.
 #include <algorithm>
 #include <condition_variable>
 #include <deque>
@@ -91,15 +91,23 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
   }
 
   const auto cap = static_cast<std::size_t>(options.queue_capacity);
-  // reader → {extract, detect} → filter → track (caller's thread).
+  // reader → {extract, prepare → detect} → filter → track (caller's thread). prepare runs the
+  // frame-independent part of the source (DynamicObjectSource::prepare) ahead of detect.
+  struct Detected {
+    DynamicObjects objects;
+    double detect_ms = 0;
+    double prepare_ms = 0;
+  };
   BoundedQueue<FrameInput> to_extract(cap);
-  BoundedQueue<FrameInput> to_detect(cap);
+  BoundedQueue<FrameInput> to_prepare(cap);
+  BoundedQueue<PreparedFrame> to_detect(cap);
   BoundedQueue<PreparedFrame> extracted(cap);
-  BoundedQueue<std::pair<DynamicObjects, double>> detected(cap);  // objects, detect_ms
+  BoundedQueue<Detected> detected(cap);
   BoundedQueue<PreparedFrame> filtered(cap);
   ErrorSlot error;
   auto close_all = [&] {
     to_extract.close();
+    to_prepare.close();
     to_detect.close();
     extracted.close();
     detected.close();
@@ -117,10 +125,10 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
   };
   std::thread reader(guarded([&] {
     while (auto in = next()) {
-      if (!to_detect.push(*in) || !to_extract.push(std::move(*in))) return;
+      if (!to_prepare.push(*in) || !to_extract.push(std::move(*in))) return;
     }
     to_extract.close();
-    to_detect.close();
+    to_prepare.close();
   }));
   std::thread extractor(guarded([&] {
     while (auto in = to_extract.pop()) {
@@ -128,12 +136,21 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
     }
     extracted.close();
   }));
-  std::thread detector(guarded([&] {
-    while (auto in = to_detect.pop()) {
+  std::thread preparer(guarded([&] {
+    while (auto in = to_prepare.pop()) {
       PreparedFrame tmp;
       tmp.input = std::move(*in);
-      slam.detect_dynamic(tmp);
-      if (!detected.push({std::move(tmp.objects), tmp.times.detect_ms})) return;
+      slam.prepare_dynamic(tmp);
+      if (!to_detect.push(std::move(tmp))) return;
+    }
+    to_detect.close();
+  }));
+  std::thread detector(guarded([&] {
+    while (auto tmp = to_detect.pop()) {
+      slam.detect_dynamic(*tmp);
+      if (!detected.push({std::move(tmp->objects), tmp->times.detect_ms, tmp->times.prepare_ms})) {
+        return;
+      }
     }
     detected.close();
   }));
@@ -141,8 +158,9 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
     while (auto pf = extracted.pop()) {
       auto objects = detected.pop();
       if (!objects) return;
-      pf->objects = std::move(objects->first);
-      pf->times.detect_ms = objects->second;
+      pf->objects = std::move(objects->objects);
+      pf->times.detect_ms = objects->detect_ms;
+      pf->times.prepare_ms = objects->prepare_ms;
       slam.filter_dynamic(*pf);
       if (!filtered.push(std::move(*pf))) return;
     }
@@ -159,6 +177,7 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
   }
   reader.join();
   extractor.join();
+  preparer.join();
   detector.join();
   filter.join();
   error.rethrow();

@@ -309,6 +309,7 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
   std::size_t relocalized = 0;
   std::vector<double> ex;
   std::vector<double> de;
+  std::vector<double> pr;
   std::vector<double> fi;
   std::vector<double> tr;
   std::vector<double> ex_cpu;
@@ -321,6 +322,7 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
     relocalized += r.state == ds3d::slam::TrackState::kRelocalized ? 1 : 0;
     ex.push_back(r.times.extract_ms);
     de.push_back(r.times.detect_ms);
+    pr.push_back(r.times.prepare_ms);
     fi.push_back(r.times.filter_ms);
     tr.push_back(r.times.track_ms);
   }
@@ -374,6 +376,7 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
      << "},\n  \"refine_cpu_ms\": " << json_number(slam.refine_ms()) << ",\n  \"stages\": {\n";
   stage("extract", ex, true);
   stage("detect", de, true);
+  stage("prepare", pr, true);
   stage("filter", fi, true);
   stage("track", tr, false);
   js << "  },\n  \"stages_cpu\": {\n";

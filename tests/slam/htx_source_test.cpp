@@ -14,6 +14,8 @@
 #include <functional>
 #include <iostream>
 #include <limits>
+#include <numeric>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -28,6 +30,7 @@
 #include "ds3d/slam/config.hpp"
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/slam/dynamic/geometric_motion.hpp"
+#include "ds3d/slam/slam_frontend.hpp"
 #include "ds3d/slam/synth.hpp"
 #include "support/cli.hpp"
 #include "support/files.hpp"
@@ -819,6 +822,121 @@ std::shared_ptr<const ds3d::SparseDetector> shipped_detector() {
   const fs::path weights = fs::path(DS3D_SOURCE_DIR) / "models" / "htx_lite_fast.safetensors";
   if (!fs::exists(weights)) return nullptr;
   return std::make_shared<const ds3d::SparseDetector>(ds3d::SparseDetector::load(weights));
+}
+
+// The same objects, bit for bit (boxes, margins, segmentation, planes, masks).
+void expect_same_objects(const DynamicObjects& a, const DynamicObjects& b, std::size_t frame) {
+  ASSERT_EQ(a.boxes_3d.size(), b.boxes_3d.size()) << frame;
+  for (std::size_t k = 0; k < a.boxes_3d.size(); ++k) {
+    EXPECT_EQ(a.boxes_3d[k], b.boxes_3d[k]) << frame;
+  }
+  EXPECT_EQ(a.boxes_2d.size(), b.boxes_2d.size()) << frame;
+  EXPECT_EQ(a.boxes_3d_margin, b.boxes_3d_margin) << frame;
+  EXPECT_EQ(a.segmentation.boxes_3d_segmented, b.segmentation.boxes_3d_segmented) << frame;
+  EXPECT_EQ(a.segmentation.foreground_points, b.segmentation.foreground_points) << frame;
+  EXPECT_EQ(a.segmentation.background_points, b.segmentation.background_points) << frame;
+  EXPECT_EQ(a.segmentation.segment_plane.has_value(), b.segmentation.segment_plane.has_value());
+  EXPECT_EQ(a.support_plane.has_value(), b.support_plane.has_value()) << frame;
+  EXPECT_EQ(a.pixel_mask.empty(), b.pixel_mask.empty()) << frame;
+  if (!a.pixel_mask.empty() && a.pixel_mask.size() == b.pixel_mask.size()) {
+    EXPECT_EQ(cv::countNonZero(a.pixel_mask != b.pixel_mask), 0) << frame;
+  }
+}
+
+// prepare() on a frame, then detect_prepared() with it, gives detect()'s objects on every frame:
+// with the floor in view (the network runs in prepare) and without (frame 3: a wall 2 m ahead
+// fills the depth; the network runs in detect_prepared with the carried upright frame). A
+// prepared result of another frame is ignored. Also through the gate and the composite.
+TEST(HtxSource, PrepareThenDetectPreparedEqualsDetect) {
+  const auto det = shipped_detector();
+  ASSERT_NE(det, nullptr) << "models/htx_lite_fast.safetensors is part of the source tree";
+  const ds3d::synth::SyntheticScene scene(scene_options(7));
+  const ds3d::PinholeCamera cam = scene.options().camera;
+  HtxSource plain(det);
+  HtxSource split(det);
+  const auto geometric = [] { return std::make_shared<ds3d::slam::GeometricMotionSource>(); };
+  ds3d::slam::MotionGatedSource gated(std::make_shared<HtxSource>(det), geometric(),
+                                      {.evidence = true});
+  ds3d::slam::MotionGatedSource gated_split(std::make_shared<HtxSource>(det), geometric(),
+                                            {.evidence = true});
+  ds3d::slam::CompositeSource both(std::make_shared<HtxSource>(det), geometric());
+  ds3d::slam::CompositeSource both_split(std::make_shared<HtxSource>(det), geometric());
+  std::shared_ptr<const ds3d::slam::PreparedDetection> previous;
+  for (std::size_t i = 0; i < scene.size(); ++i) {
+    FrameInput in = to_input(scene.render(i));
+    if (i == 3) {
+      in.depth = cv::Mat(in.depth.size(), CV_16UC1,
+                         cv::Scalar(2.0 * static_cast<double>(cam.depth_scale)));
+    }
+    const auto prepared = split.prepare(in, cam);
+    ASSERT_NE(prepared, nullptr) << i;
+    const DynamicObjects a = plain.detect(in, cam);
+    // Frame 5 is given frame 4's preparation: ignored.
+    const DynamicObjects b = split.detect_prepared(in, cam, (i == 5 ? previous : prepared).get());
+    expect_same_objects(a, b, i);
+    EXPECT_EQ(plain.last_stats().ground_found, split.last_stats().ground_found) << i;
+    EXPECT_EQ(plain.last_stats().num_foreground, split.last_stats().num_foreground) << i;
+    EXPECT_EQ(plain.R_up_cam(), split.R_up_cam()) << i;
+    if (i == 3) {
+      EXPECT_FALSE(split.last_stats().ground_found);
+    }
+    previous = prepared;
+    const auto gp = gated_split.prepare(in, cam);
+    ASSERT_NE(gp, nullptr) << i;
+    expect_same_objects(gated.detect(in, cam), gated_split.detect_prepared(in, cam, gp.get()), i);
+    const auto cp = both_split.prepare(in, cam);
+    ASSERT_NE(cp, nullptr) << i;
+    expect_same_objects(both.detect(in, cam), both_split.detect_prepared(in, cam, cp.get()), i);
+  }
+  // No preparation with detect_every > 1 or an invalid depth image (detect reports it).
+  const FrameInput first = to_input(scene.render(0));
+  EXPECT_EQ(HtxSource(det, {.detect_every = 2}).prepare(first, cam), nullptr);
+  FrameInput bad = first;
+  bad.depth = cv::Mat(4, 4, CV_16UC1, cv::Scalar(1000));
+  EXPECT_EQ(split.prepare(bad, cam), nullptr);
+  EXPECT_THROW((void)split.detect_prepared(bad, cam, nullptr), ds3d::InvalidArgument);
+}
+
+// The threaded pipeline (prepare of a frame on its own thread, ahead of detect) gives the
+// trajectory and the per-frame dynamic counts of the sequential one, bit for bit, with htx and
+// with the evidence gate.
+TEST(HtxSource, ThreadedPipelineWithPrepareEqualsSequential) {
+  const auto det = shipped_detector();
+  ASSERT_NE(det, nullptr) << "models/htx_lite_fast.safetensors is part of the source tree";
+  const ds3d::synth::SyntheticScene scene(scene_options(12));
+  const auto run = [&](bool threaded, bool gate) {
+    std::shared_ptr<ds3d::slam::DynamicObjectSource> src = std::make_shared<HtxSource>(det);
+    if (gate) {
+      src = std::make_shared<ds3d::slam::MotionGatedSource>(
+          src, std::make_shared<ds3d::slam::GeometricMotionSource>(),
+          ds3d::slam::MotionGateParams{.evidence = true});
+    }
+    ds3d::slam::FrontendConfig cfg;
+    cfg.camera = scene.options().camera;
+    ds3d::slam::SlamFrontend slam(cfg, src, std::make_shared<ds3d::slam::HdbscanMasker>());
+    std::size_t i = 0;
+    const auto next = [&]() -> std::optional<FrameInput> {
+      if (i >= scene.size()) return std::nullopt;
+      return to_input(scene.render(i++));
+    };
+    ds3d::slam::PipelineOptions po;
+    po.threaded = threaded;
+    std::vector<int> dynamic;
+    for (const auto& r : ds3d::slam::run_pipeline(slam, next, {}, po)) {
+      dynamic.push_back(r.num_dynamic);
+    }
+    return std::make_pair(slam.trajectory(), dynamic);
+  };
+  for (const bool gate : {false, true}) {
+    const auto [seq, seq_dynamic] = run(false, gate);
+    const auto [thr, thr_dynamic] = run(true, gate);
+    EXPECT_EQ(seq_dynamic, thr_dynamic) << gate;
+    ASSERT_EQ(seq.size(), thr.size());
+    for (std::size_t k = 0; k < seq.size(); ++k) {
+      EXPECT_EQ(seq[k].T_world_cam.matrix(), thr[k].T_world_cam.matrix()) << gate << " " << k;
+    }
+    EXPECT_GT(std::accumulate(seq_dynamic.begin(), seq_dynamic.end(), 0), 0) << gate;
+  }
 }
 
 // sitting_static, seed 7, `frames` frames.

@@ -4,8 +4,10 @@
 // nanoflann 3-D float KD-tree over any PointCloud (read through PointCloudTraits), optionally
 // restricted to a subset of the input (e.g. its finite points). Not API.
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include <nanoflann.hpp>
@@ -62,6 +64,32 @@ class CountingRadiusResultSet {
   std::uint32_t limit_;
   Accept accept_;
   std::uint32_t count_ = 0;
+};
+
+/// nanoflann result set for the nearest neighbour within a squared radius: the same point as a
+/// 1-NN search (the first visited on ties) when that lies within `r2` (inclusive), found with the
+/// radius as the initial bound, so that the search prunes from the start; none otherwise.
+class NearestWithinResultSet {
+ public:
+  explicit NearestWithinResultSet(double r2)
+      : best_(std::nextafter(r2, std::numeric_limits<double>::infinity())) {}
+  [[nodiscard]] bool full() const { return true; }
+  [[nodiscard]] double worstDist() const { return best_; }  // NOLINT(readability-*)
+  bool addPoint(double dist, std::uint32_t index) {  // NOLINT(readability-*)
+    if (dist < best_) {
+      best_ = dist;
+      index_ = index;
+      found_ = true;
+    }
+    return true;
+  }
+  [[nodiscard]] bool found() const { return found_; }
+  [[nodiscard]] std::uint32_t index() const { return index_; }
+
+ private:
+  double best_;
+  std::uint32_t index_ = 0;
+  bool found_ = false;
 };
 
 }  // namespace ds3d::detail

@@ -151,7 +151,8 @@ enum class KeypointStatus : std::uint8_t {
 /// stage (CPU time does not grow when other processes compete for the cores).
 struct StageTimes {
   double extract_ms = 0;      ///< ORB extraction (+ undistortion, depth lookup), wall
-  double detect_ms = 0;       ///< dynamic-object source, wall
+  double detect_ms = 0;       ///< dynamic-object source, wall (prepare_ms included)
+  double prepare_ms = 0;      ///< of detect_ms: the source's prepare() (own thread when threaded)
   double filter_ms = 0;       ///< dynamic filter, wall
   double track_ms = 0;        ///< tracking (+ keyframe insertion, BA scheduling/applying), wall
   double extract_cpu_ms = 0;  ///< extraction, thread CPU time
@@ -184,6 +185,8 @@ struct PreparedFrame {
   FrameInput input;                   ///< the frame itself
   OrbFeatures features;               ///< all extracted features
   DynamicObjects objects;             ///< from the dynamic-object source
+  /// The source's prepare() result (prepare_dynamic); detect_dynamic consumes it.
+  std::shared_ptr<const PreparedDetection> detection;
   std::vector<std::uint8_t> dynamic;  ///< one per feature, non-zero = removed
   /// Spare candidates of the extractor (FrontendConfig::spare_features); the dynamic stage
   /// appends the ones it uses to `features` (with dynamic = 0) and clears this.
@@ -242,7 +245,12 @@ class SlamFrontend {
 
   /// Stage 1 (thread-safe, const): validates the frame and extracts features.
   [[nodiscard]] PreparedFrame extract(FrameInput frame) const;
-  /// Stage 2: runs the dynamic-object source (in frame order).
+  /// Stage 2a (optional; in frame order, may run on another thread than the other stages, ahead
+  /// of detect_dynamic of earlier frames): the frame-independent part of the dynamic-object
+  /// source's work (DynamicObjectSource::prepare), kept in frame.detection.
+  void prepare_dynamic(PreparedFrame& frame) const;
+  /// Stage 2: runs the dynamic-object source (in frame order), with frame.detection if
+  /// prepare_dynamic filled it (then cleared).
   void detect_dynamic(PreparedFrame& frame);
   /// Stage 3: runs the dynamic filter (in frame order, after detect_dynamic).
   void filter_dynamic(PreparedFrame& frame);

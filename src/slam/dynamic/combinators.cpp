@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <optional>
 #include <utility>
@@ -72,8 +73,47 @@ CompositeSource::CompositeSource(std::shared_ptr<DynamicObjectSource> first,
 
 std::string CompositeSource::name() const { return first_->name() + "+" + second_->name(); }
 
+namespace {
+
+// What the two sources of a combinator prepared (either may be null).
+struct PreparedPair final : PreparedDetection {
+  std::shared_ptr<const PreparedDetection> first, second;
+};
+
+const PreparedDetection* first_of(const PreparedDetection* p) {
+  const auto* pair = dynamic_cast<const PreparedPair*>(p);
+  return pair != nullptr ? pair->first.get() : nullptr;
+}
+
+const PreparedDetection* second_of(const PreparedDetection* p) {
+  const auto* pair = dynamic_cast<const PreparedPair*>(p);
+  return pair != nullptr ? pair->second.get() : nullptr;
+}
+
+std::shared_ptr<const PreparedDetection> pair_of(std::shared_ptr<const PreparedDetection> first,
+                                                 std::shared_ptr<const PreparedDetection> second) {
+  if (first == nullptr && second == nullptr) return nullptr;
+  auto p = std::make_shared<PreparedPair>();
+  p->first = std::move(first);
+  p->second = std::move(second);
+  return p;
+}
+
+}  // namespace
+
+std::shared_ptr<const PreparedDetection> CompositeSource::prepare(
+    const FrameInput& frame, const PinholeCamera& camera) const {
+  return pair_of(first_->prepare(frame, camera), nullptr);
+}
+
 DynamicObjects CompositeSource::detect(const FrameInput& frame, const PinholeCamera& camera) {
-  DynamicObjects out = first_->detect(frame, camera);
+  return detect_prepared(frame, camera, nullptr);
+}
+
+DynamicObjects CompositeSource::detect_prepared(const FrameInput& frame,
+                                                const PinholeCamera& camera,
+                                                const PreparedDetection* prepared) {
+  DynamicObjects out = first_->detect_prepared(frame, camera, first_of(prepared));
   FrameInput rest = frame;
   const std::vector<ImageBox> boxes = image_boxes(out, camera);
   const cv::Mat& m = out.pixel_mask;
@@ -323,9 +363,20 @@ std::size_t add_kept_boxes(DynamicObjects& out, const DynamicObjects& sem,
 
 }  // namespace
 
+std::shared_ptr<const PreparedDetection> MotionGatedSource::prepare(
+    const FrameInput& frame, const PinholeCamera& camera) const {
+  return pair_of(semantic_->prepare(frame, camera), motion_->prepare(frame, camera));
+}
+
 DynamicObjects MotionGatedSource::detect(const FrameInput& frame, const PinholeCamera& camera) {
-  const DynamicObjects sem = semantic_->detect(frame, camera);
-  DynamicObjects out = motion_->detect(frame, camera);
+  return detect_prepared(frame, camera, nullptr);
+}
+
+DynamicObjects MotionGatedSource::detect_prepared(const FrameInput& frame,
+                                                  const PinholeCamera& camera,
+                                                  const PreparedDetection* prepared) {
+  const DynamicObjects sem = semantic_->detect_prepared(frame, camera, first_of(prepared));
+  DynamicObjects out = motion_->detect_prepared(frame, camera, second_of(prepared));
   ++frame_count_;
   const std::size_t now = frame_count_;
   const std::vector<ImageBox> moving = image_boxes(out, camera);

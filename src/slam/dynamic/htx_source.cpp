@@ -192,31 +192,102 @@ PreprocessResult preprocess_depth(const FrameInput& frame, const PinholeCamera& 
                     static_cast<std::ptrdiff_t>(frame.depth.step1()), camera, pp);
 }
 
+// This frame's floor normal (camera frame, pointing up), when it can fix the upright frame.
+std::optional<Eigen::Vector3d> usable_floor(const PreprocessResult& pre) {
+  if (!pre.ground_found) return std::nullopt;
+  const Eigen::Vector3d up = pre.ground_plane.head<3>();
+  // The preprocess prior keeps the floor normal within 30° of camera -y, so this holds;
+  // checked anyway so that a custom prior cannot make upright_rotation throw mid-sequence.
+  if (up.allFinite() && up.y() < 0.0 && std::isfinite(pre.ground_plane.w())) return up;
+  return std::nullopt;
+}
+
 // The gravity-alignment stage: with this frame's floor, R_up_cam from its normal, and the floor
 // as the objects' segment_plane (`segment`) and support_plane (report_floor). Returns whether
 // the floor was used.
 bool align_with_floor(const PreprocessResult& pre, const HtxSourceParams& params, bool segment,
                       Eigen::Matrix3f& R_up_cam, DynamicObjects& objects) {
-  if (pre.ground_found) {
-    const Eigen::Vector3d up = pre.ground_plane.head<3>();
-    // The preprocess prior keeps the floor normal within 30° of camera -y, so this holds;
-    // checked anyway so that a custom prior cannot make upright_rotation throw mid-sequence.
-    if (up.allFinite() && up.y() < 0.0 && std::isfinite(pre.ground_plane.w())) {
-      R_up_cam = upright_rotation(up);
-      const Eigen::Vector4f ground = (pre.ground_plane / up.norm()).cast<float>();
-      // The floor preprocess removed (camera frame): the segmentation gives it no label.
-      if (segment) objects.segmentation.segment_plane = ground;
-      // This frame's floor: the masker keeps the keypoints on it static.
-      if (params.report_floor) objects.support_plane = ground;
-      return true;
-    }
-  }
-  return false;
+  const std::optional<Eigen::Vector3d> up = usable_floor(pre);
+  if (!up) return false;
+  R_up_cam = upright_rotation(*up);
+  const Eigen::Vector4f ground = (pre.ground_plane / up->norm()).cast<float>();
+  // The floor preprocess removed (camera frame): the segmentation gives it no label.
+  if (segment) objects.segmentation.segment_plane = ground;
+  // This frame's floor: the masker keeps the keypoints on it static.
+  if (params.report_floor) objects.support_plane = ground;
+  return true;
 }
 
 }  // namespace
 
+struct HtxSource::Network {
+  DetectorInput in;
+  DetectorOutput out;     // boxes, and part logits when segmenting
+  double input_ms = 0;    // make_detector_input
+  double network_ms = 0;  // the forward pass
+};
+
+struct HtxSource::Prepared final : PreparedDetection {
+  std::size_t index = 0;  // the frame's
+  double timestamp = 0;
+  PreprocessResult pre;
+  double preprocess_ms = 0;
+  std::optional<Network> net;  // when pre's floor fixed the upright frame
+};
+
+HtxSource::Prepared HtxSource::preprocess_frame(const FrameInput& frame,
+                                                const PinholeCamera& camera,
+                                                PixelRayCache& rays) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  Prepared p;
+  p.index = frame.index;
+  p.timestamp = frame.timestamp;
+  p.pre = preprocess_depth(frame, camera, params_, rays);
+  p.preprocess_ms = ms_since(t0);
+  return p;
+}
+
+HtxSource::Network HtxSource::run_network(const PreprocessResult& pre,
+                                          const Eigen::Matrix3f& R_up_cam,
+                                          std::size_t index) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  Network net;
+  DetectorInputParams ip = params_.input;
+  ip.seed = mix_seed(params_.input.seed, index);
+  net.in = make_detector_input(pre.points, R_up_cam, ip);
+  net.input_ms = ms_since(t0);
+  if (net.in.points.rows() == 0) return net;
+  const auto t1 = std::chrono::steady_clock::now();
+  if (params_.segment && run_) {
+    net.out = run_(net.in.points);
+  } else {
+    net.out.boxes = detect_(net.in.points);
+  }
+  net.network_ms = ms_since(t1);
+  return net;
+}
+
+std::shared_ptr<const PreparedDetection> HtxSource::prepare(const FrameInput& frame,
+                                                            const PinholeCamera& camera) const {
+  if (params_.detect_every != 1 || !run_ || frame.depth.empty() ||
+      frame.depth.type() != CV_16UC1 || frame.depth.cols != camera.width ||
+      frame.depth.rows != camera.height) {
+    return nullptr;
+  }
+  const std::lock_guard<std::mutex> lock(prepare_mutex_);
+  auto p = std::make_shared<Prepared>(preprocess_frame(frame, camera, prepare_rays_));
+  if (const std::optional<Eigen::Vector3d> up = usable_floor(p->pre)) {
+    p->net = run_network(p->pre, upright_rotation(*up), frame.index);
+  }
+  return p;
+}
+
 DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& camera) {
+  return detect_prepared(frame, camera, nullptr);
+}
+
+DynamicObjects HtxSource::detect_prepared(const FrameInput& frame, const PinholeCamera& camera,
+                                          const PreparedDetection* prepared) {
   const bool run_now = frame_count_ % static_cast<std::size_t>(params_.detect_every) == 0;
   ++frame_count_;
   stats_ = HtxFrameStats{};
@@ -229,20 +300,27 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
              "ds3d::slam::HtxSource::detect: depth must be CV_16UC1 of ", camera.width, "x",
              camera.height, " (got type ", frame.depth.type(), ", ", frame.depth.cols, "x",
              frame.depth.rows, ")");
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto* given = dynamic_cast<const Prepared*>(prepared);
+  if (given != nullptr && (given->index != frame.index || given->timestamp != frame.timestamp)) {
+    given = nullptr;  // prepared for another frame
+  }
+  std::optional<Prepared> local;
+  if (given == nullptr) local = preprocess_frame(frame, camera, rays_);
+  const Prepared& p = given != nullptr ? *given : *local;
   const bool segment = params_.segment && static_cast<bool>(run_);
-  const PreprocessResult pre = preprocess_depth(frame, camera, params_, rays_);
+  const PreprocessResult& pre = p.pre;
   stats_.num_points = static_cast<std::size_t>(pre.points.rows());
   stats_.ground_found = align_with_floor(pre, params_, segment, R_up_cam_, last_objects_);
-  DetectorInputParams ip = params_.input;
-  ip.seed = mix_seed(params_.input.seed, frame.index);
-  const DetectorInput in = make_detector_input(pre.points, R_up_cam_, ip);
-  stats_.preprocess_ms = ms_since(t0);
+  std::optional<Network> computed;
+  if (!p.net) computed = run_network(pre, R_up_cam_, frame.index);
+  const Network& net = p.net ? *p.net : *computed;
+  const DetectorInput& in = net.in;
+  stats_.preprocess_ms = p.preprocess_ms + net.input_ms;
   if (in.points.rows() == 0) return last_objects_;
   const auto t1 = std::chrono::steady_clock::now();
   const std::vector<Box3> boxes =
-      segment ? segment_frame(pre, in, frame.timestamp) : detect_(in.points);
-  stats_.detect_ms = ms_since(t1);
+      segment ? segment_frame(pre, in, net.out, frame.timestamp) : net.out.boxes;
+  stats_.detect_ms = net.network_ms + ms_since(t1);
   stats_.detected = true;
   const auto report = [&](const Box3& b, const Eigen::Matrix3f& R_up_cam) {
     const Eigen::Matrix3d R_cam_up = R_up_cam.cast<double>().transpose();
@@ -313,12 +391,11 @@ DynamicObjects HtxSource::detect(const FrameInput& frame, const PinholeCamera& c
 }
 
 std::vector<Box3> HtxSource::segment_frame(const PreprocessResult& pre, const DetectorInput& in,
-                                           double timestamp) {
+                                           const DetectorOutput& o, double timestamp) {
   // The part logits averaged per preprocessed point (a point drawn twice counts twice).
   const Eigen::Index n = pre.points.rows();
   std::vector<float> sum(static_cast<std::size_t>(n), 0.0F);
   std::vector<int> count(static_cast<std::size_t>(n), 0);
-  DetectorOutput o = run_(in.points);
   for (Eigen::Index k = 0; k < o.part_logits.rows(); ++k) {
     const std::uint32_t row = in.rows[static_cast<std::size_t>(k)];
     sum[row] += o.part_logits(k, 0);
@@ -351,7 +428,7 @@ std::vector<Box3> HtxSource::segment_frame(const PreprocessResult& pre, const De
   seg.foreground_radius = params_.foreground_radius;
   seg.segment_outside_boxes = params_.segment_outside_boxes;
   stats_.num_foreground = fg.size();
-  return std::move(o.boxes);
+  return o.boxes;
 }
 
 struct HtxSource::PastSegmentation {
@@ -399,10 +476,10 @@ void HtxSource::smooth_over_frames(const Points3f& points, const std::vector<int
     int m = 1;
     const Eigen::Vector3f q = points.row(r).transpose();
     for (const auto& f : past_) {
-      std::uint32_t index = 0;
-      double d2 = 0.0;
-      if (f->tree.knnSearch(q.data(), 1, &index, &d2) == 1 && d2 <= r2) {
-        s += f->logit[index];
+      detail::NearestWithinResultSet nearest(r2);
+      f->tree.findNeighbors(nearest, q.data(), nanoflann::SearchParams());
+      if (nearest.found()) {
+        s += f->logit[nearest.index()];
         ++m;
       }
     }

@@ -34,6 +34,11 @@ class CompositeSource final : public DynamicObjectSource {
   CompositeSource(std::shared_ptr<DynamicObjectSource> first,
                   std::shared_ptr<DynamicObjectSource> second);
   DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
+  /// `first`'s prepare() (the second source needs first's objects); nullptr when it has none.
+  [[nodiscard]] std::shared_ptr<const PreparedDetection> prepare(
+      const FrameInput& frame, const PinholeCamera& camera) const override;
+  DynamicObjects detect_prepared(const FrameInput& frame, const PinholeCamera& camera,
+                                 const PreparedDetection* prepared) override;
   /// "<first>+<second>", e.g. "htx+geometric".
   [[nodiscard]] std::string name() const override;
   /// The source that runs first (e.g. the semantic detector).
@@ -101,6 +106,11 @@ class MotionGatedSource final : public DynamicObjectSource {
   MotionGatedSource(std::shared_ptr<DynamicObjectSource> semantic,
                     std::shared_ptr<DynamicObjectSource> motion, MotionGateParams params = {});
   DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
+  /// Both sources' prepare(); nullptr when neither has one.
+  [[nodiscard]] std::shared_ptr<const PreparedDetection> prepare(
+      const FrameInput& frame, const PinholeCamera& camera) const override;
+  DynamicObjects detect_prepared(const FrameInput& frame, const PinholeCamera& camera,
+                                 const PreparedDetection* prepared) override;
   /// "<semantic>&<motion>", e.g. "htx&geometric" ("htx&&geometric" with the evidence gate).
   [[nodiscard]] std::string name() const override;
   /// Semantic boxes (2-D and 3-D) of the last detect() call, before the gate.

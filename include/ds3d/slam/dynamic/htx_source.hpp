@@ -11,6 +11,7 @@
 #include <deque>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
@@ -147,6 +148,16 @@ class HtxSource final : public DynamicObjectSource {
   /// Boxes of the configured classes in `frame` (camera-frame corners); none without depth.
   /// @throws ds3d::InvalidArgument only for a depth image of the wrong type or size.
   DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
+  /// The preprocessing and, when the frame's floor fixes the upright frame, the network pass of
+  /// detect(): nullptr with detect_every > 1, with the DetectFn constructor (a plug-in function
+  /// is not assumed thread-safe), or for an empty or invalid depth image (detect() reports it).
+  /// Thread-safe against detect_prepared(); uses its own undistortion table.
+  [[nodiscard]] std::shared_ptr<const PreparedDetection> prepare(
+      const FrameInput& frame, const PinholeCamera& camera) const override;
+  /// detect(), with the work prepare() did for this frame (same objects, same stats).
+  /// @throws like detect().
+  DynamicObjects detect_prepared(const FrameInput& frame, const PinholeCamera& camera,
+                                 const PreparedDetection* prepared) override;
   [[nodiscard]] std::string name() const override { return "htx"; }
   /// Counts and timings of the last detect() call.
   [[nodiscard]] const HtxFrameStats& last_stats() const noexcept { return stats_; }
@@ -192,14 +203,24 @@ class HtxSource final : public DynamicObjectSource {
                           std::vector<float>& logit);
   // The preprocess voxel leaf's largest edge [m]: the scale of the temporal smoothing.
   [[nodiscard]] double largest_leaf_edge() const;
-  // The segmentation stage of detect(): the network with part logits on `in`, its logits
-  // averaged per preprocessed point and over frames, and the points labelled into
+  // The segmentation stage of detect(): the network's part logits `o` on `in` averaged per
+  // preprocessed point and over frames, and the points labelled into
   // last_objects_.segmentation. Returns the network's boxes.
   std::vector<Box3> segment_frame(const PreprocessResult& pre, const DetectorInput& in,
-                                  double timestamp);
+                                  const DetectorOutput& o, double timestamp);
+  // The stateless stages of detect() (defined in the .cpp): the network's input and output, and
+  // the preprocessed frame with, when its floor fixed the upright frame, the network's pass.
+  struct Network;
+  struct Prepared;
+  [[nodiscard]] Prepared preprocess_frame(const FrameInput& frame, const PinholeCamera& camera,
+                                          PixelRayCache& rays) const;
+  [[nodiscard]] Network run_network(const PreprocessResult& pre, const Eigen::Matrix3f& R_up_cam,
+                                    std::size_t index) const;
   DynamicObjects last_objects_;
   HtxFrameStats stats_;
   PixelRayCache rays_;  // undistortion table of the camera (distorted cameras only)
+  mutable std::mutex prepare_mutex_;  // prepare() calls one at a time, with their own table
+  mutable PixelRayCache prepare_rays_;
 };
 
 }  // namespace ds3d::slam

@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -75,14 +76,37 @@ struct DynamicObjects {
   Segmentation segmentation;
 };
 
+/// What DynamicObjectSource::prepare computed for one frame; each source derives its own.
+struct PreparedDetection {
+  virtual ~PreparedDetection() = default;
+};
+
 /// Stage "dynamic-object source": finds moving objects in a frame (runs beside feature
-/// extraction, as 3DS-SLAM's detection thread). Called once per frame, in frame order, from one
-/// thread at a time, so implementations may keep state across frames.
+/// extraction, as 3DS-SLAM's detection thread). detect() is called once per frame, in frame
+/// order, from one thread at a time, so implementations may keep state across frames.
+///
+/// A source may split its work: prepare() does the part that needs no earlier frame (for HtxSource
+/// the depth preprocessing and the network), detect_prepared() the rest. The threaded pipeline
+/// then runs prepare() of frame t+1 on its own thread while detect_prepared() of frame t runs;
+/// the objects are the same as detect()'s.
 class DynamicObjectSource {
  public:
   virtual ~DynamicObjectSource() = default;
   /// Objects in `frame`. Must not throw for a valid frame; "nothing found" = empty result.
   virtual DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) = 0;
+  /// The frame-independent part of detect(frame, camera), or nullptr (the default: detect does
+  /// all). Called in frame order from one thread, concurrently with detect_prepared() of earlier
+  /// frames, so it must not touch the state detect() keeps. Must not throw for a valid frame.
+  [[nodiscard]] virtual std::shared_ptr<const PreparedDetection> prepare(
+      const FrameInput& /*frame*/, const PinholeCamera& /*camera*/) const {
+    return nullptr;
+  }
+  /// detect(frame, camera), reusing what prepare(frame, camera) returned for this same frame
+  /// (nullptr or another source's result: as detect()). Same result as detect().
+  virtual DynamicObjects detect_prepared(const FrameInput& frame, const PinholeCamera& camera,
+                                         const PreparedDetection* /*prepared*/) {
+    return detect(frame, camera);
+  }
   /// Short name for logs and stats (e.g. "none", "htx").
   [[nodiscard]] virtual std::string name() const = 0;
 };
