@@ -207,16 +207,20 @@ PreparedFrame SlamFrontend::extract(FrameInput frame) const {
 
 void SlamFrontend::prepare_dynamic(PreparedFrame& frame) const {
   const auto t0 = Clock::now();
+  const double c0 = thread_cpu_ms();
   frame.detection = impl_->source->prepare(frame.input, impl_->cfg.camera);
   frame.times.prepare_ms = ms_since(t0);
+  frame.times.prepare_cpu_ms = thread_cpu_ms() - c0;
 }
 
 void SlamFrontend::detect_dynamic(PreparedFrame& frame) {
   const auto t0 = Clock::now();
+  const double c0 = thread_cpu_ms();
   frame.objects =
       impl_->source->detect_prepared(frame.input, impl_->cfg.camera, frame.detection.get());
   frame.detection.reset();
   frame.times.detect_ms = frame.times.prepare_ms + ms_since(t0);
+  frame.times.detect_cpu_ms = frame.times.prepare_cpu_ms + thread_cpu_ms() - c0;
 }
 
 void SlamFrontend::filter_dynamic(PreparedFrame& frame) {

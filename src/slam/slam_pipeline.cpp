@@ -95,8 +95,7 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
   // frame-independent part of the source (DynamicObjectSource::prepare) ahead of detect.
   struct Detected {
     DynamicObjects objects;
-    double detect_ms = 0;
-    double prepare_ms = 0;
+    StageTimes times;  // the detect and prepare fields
   };
   BoundedQueue<FrameInput> to_extract(cap);
   BoundedQueue<FrameInput> to_prepare(cap);
@@ -148,9 +147,7 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
   std::thread detector(guarded([&] {
     while (auto tmp = to_detect.pop()) {
       slam.detect_dynamic(*tmp);
-      if (!detected.push({std::move(tmp->objects), tmp->times.detect_ms, tmp->times.prepare_ms})) {
-        return;
-      }
+      if (!detected.push({std::move(tmp->objects), tmp->times})) return;
     }
     detected.close();
   }));
@@ -159,8 +156,11 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
       auto objects = detected.pop();
       if (!objects) return;
       pf->objects = std::move(objects->objects);
-      pf->times.detect_ms = objects->detect_ms;
-      pf->times.prepare_ms = objects->prepare_ms;
+      const StageTimes& t = objects->times;
+      pf->times.detect_ms = t.detect_ms;
+      pf->times.prepare_ms = t.prepare_ms;
+      pf->times.detect_cpu_ms = t.detect_cpu_ms;
+      pf->times.prepare_cpu_ms = t.prepare_cpu_ms;
       slam.filter_dynamic(*pf);
       if (!filtered.push(std::move(*pf))) return;
     }

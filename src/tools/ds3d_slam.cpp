@@ -314,9 +314,13 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
   std::vector<double> tr;
   std::vector<double> ex_cpu;
   std::vector<double> tr_cpu;
+  std::vector<double> de_cpu;
+  std::vector<double> pr_cpu;
   for (const auto& r : results) {
     ex_cpu.push_back(r.times.extract_cpu_ms);
     tr_cpu.push_back(r.times.track_cpu_ms);
+    de_cpu.push_back(r.times.detect_cpu_ms);
+    pr_cpu.push_back(r.times.prepare_cpu_ms);
     tracked += r.tracked ? 1 : 0;
     lost += r.state == ds3d::slam::TrackState::kLost ? 1 : 0;
     relocalized += r.state == ds3d::slam::TrackState::kRelocalized ? 1 : 0;
@@ -381,6 +385,8 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
   stage("track", tr, false);
   js << "  },\n  \"stages_cpu\": {\n";
   stage("extract", ex_cpu, true);
+  stage("detect", de_cpu, true);
+  stage("prepare", pr_cpu, true);
   stage("track", tr_cpu, false);
   js << "  },\n";
   write_per_frame(js, results);

@@ -157,6 +157,8 @@ struct StageTimes {
   double track_ms = 0;        ///< tracking (+ keyframe insertion, BA scheduling/applying), wall
   double extract_cpu_ms = 0;  ///< extraction, thread CPU time
   double track_cpu_ms = 0;    ///< tracking, thread CPU time
+  double detect_cpu_ms = 0;   ///< dynamic-object source, thread CPU time (prepare_cpu_ms included)
+  double prepare_cpu_ms = 0;  ///< of detect_cpu_ms: the source's prepare(), thread CPU time
 };
 
 /// The outcome of tracking one frame.

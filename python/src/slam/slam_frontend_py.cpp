@@ -284,10 +284,13 @@ void bind_track_result(py::module_& m) {
             d["track_ms"] = r.times.track_ms;
             d["extract_cpu_ms"] = r.times.extract_cpu_ms;
             d["track_cpu_ms"] = r.times.track_cpu_ms;
+            d["detect_cpu_ms"] = r.times.detect_cpu_ms;
+            d["prepare_cpu_ms"] = r.times.prepare_cpu_ms;
             return d;
           },
           "stage times [ms]: extract_ms detect_ms filter_ms track_ms (wall; prepare_ms: the part "
-          "of detect_ms in the source's prepare()), extract_cpu_ms track_cpu_ms")
+          "of detect_ms in the source's prepare()), extract_cpu_ms track_cpu_ms detect_cpu_ms "
+          "prepare_cpu_ms (thread CPU)")
       .def("__repr__", [](const TrackResult& r) {
         return "TrackResult(index=" + std::to_string(r.index) + ", state='" +
                ds3d::slam::to_string(r.state) + "', features=" + std::to_string(r.num_features) +
