@@ -177,9 +177,10 @@ void three_smallest(const float* d2, Eigen::Index count, Eigen::Index k, Eigen::
 
 }  // namespace
 
-DS3D_NO_FP_CONTRACT void three_nn(const Mat& tokens, const Mat& points, Eigen::Index k,
-                                  Eigen::Matrix<Eigen::Index, Eigen::Dynamic, 3, Eigen::RowMajor>& idx,
-                                  Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>& dist) {
+DS3D_NO_FP_CONTRACT void three_nn(
+    const Mat& tokens, const Mat& points, Eigen::Index k,
+    Eigen::Matrix<Eigen::Index, Eigen::Dynamic, 3, Eigen::RowMajor>& idx,
+    Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>& dist) {
   const Eigen::Index t = tokens.rows();
   idx.resize(points.rows(), 3);
   dist.resize(points.rows(), 3);

@@ -99,9 +99,10 @@ DS3D_NO_FP_CONTRACT Mat ball_group(const Mat& p, const Mat& centres, float r, Ei
                                    std::vector<Eigen::Index>& begin);
 // The 3 nearest tokens of every row of `points` (lowest index first on ties) and their squared
 // distances: row i of idx / dist, of which k = min(3, tokens) entries are valid.
-DS3D_NO_FP_CONTRACT void three_nn(const Mat& tokens, const Mat& points, Eigen::Index k,
-                                  Eigen::Matrix<Eigen::Index, Eigen::Dynamic, 3, Eigen::RowMajor>& idx,
-                                  Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>& dist);
+DS3D_NO_FP_CONTRACT void three_nn(
+    const Mat& tokens, const Mat& points, Eigen::Index k,
+    Eigen::Matrix<Eigen::Index, Eigen::Dynamic, 3, Eigen::RowMajor>& idx,
+    Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>& dist);
 
 // ---- transformer.cpp: encoder, positional embedding, decoder ------------------------------
 

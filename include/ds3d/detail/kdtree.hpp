@@ -75,7 +75,7 @@ class NearestWithinResultSet {
       : best_(std::nextafter(r2, std::numeric_limits<double>::infinity())) {}
   [[nodiscard]] bool full() const { return true; }
   [[nodiscard]] double worstDist() const { return best_; }  // NOLINT(readability-*)
-  bool addPoint(double dist, std::uint32_t index) {  // NOLINT(readability-*)
+  bool addPoint(double dist, std::uint32_t index) {         // NOLINT(readability-*)
     if (dist < best_) {
       best_ = dist;
       index_ = index;

@@ -184,9 +184,9 @@ struct TrackResult {
 
 /// A frame after the extraction and dynamic stages (what the tracking stage consumes).
 struct PreparedFrame {
-  FrameInput input;                   ///< the frame itself
-  OrbFeatures features;               ///< all extracted features
-  DynamicObjects objects;             ///< from the dynamic-object source
+  FrameInput input;        ///< the frame itself
+  OrbFeatures features;    ///< all extracted features
+  DynamicObjects objects;  ///< from the dynamic-object source
   /// The source's prepare() result (prepare_dynamic); detect_dynamic consumes it.
   std::shared_ptr<const PreparedDetection> detection;
   std::vector<std::uint8_t> dynamic;  ///< one per feature, non-zero = removed

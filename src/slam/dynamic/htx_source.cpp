@@ -269,9 +269,8 @@ HtxSource::Network HtxSource::run_network(const PreprocessResult& pre,
 
 std::shared_ptr<const PreparedDetection> HtxSource::prepare(const FrameInput& frame,
                                                             const PinholeCamera& camera) const {
-  if (params_.detect_every != 1 || !run_ || frame.depth.empty() ||
-      frame.depth.type() != CV_16UC1 || frame.depth.cols != camera.width ||
-      frame.depth.rows != camera.height) {
+  if (params_.detect_every != 1 || !run_ || frame.depth.empty() || frame.depth.type() != CV_16UC1 ||
+      frame.depth.cols != camera.width || frame.depth.rows != camera.height) {
     return nullptr;
   }
   const std::lock_guard<std::mutex> lock(prepare_mutex_);

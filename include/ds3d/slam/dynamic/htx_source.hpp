@@ -218,7 +218,7 @@ class HtxSource final : public DynamicObjectSource {
                                     std::size_t index) const;
   DynamicObjects last_objects_;
   HtxFrameStats stats_;
-  PixelRayCache rays_;  // undistortion table of the camera (distorted cameras only)
+  PixelRayCache rays_;                // undistortion table of the camera (distorted cameras only)
   mutable std::mutex prepare_mutex_;  // prepare() calls one at a time, with their own table
   mutable PixelRayCache prepare_rays_;
 };
