@@ -16,9 +16,11 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <sstream>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <opencv2/core/utility.hpp>
@@ -301,6 +303,7 @@ void write_per_frame(std::ostream& js, const std::vector<FrameRecord>& results) 
 // Prints the one-line summary (unless --quiet) and returns the --stats JSON.
 std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
                        const std::vector<FrameRecord>& results, const std::vector<double>& frame_ms,
+                       const std::vector<double>& latency_ms,
                        double wall_s, std::size_t total, const StopInfo& stop,
                        const ds3d_slam_tool::InputWarnings& warn) {
   const ds3d::slam::SlamConfig& c = a.config;
@@ -372,6 +375,8 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
      << "  \"fps_median\": " << json_number(fps_p.median) << ",\n"
      << "  \"frame_interval\": {\"median_ms\": " << json_number(percentiles(frame_ms).median)
      << ", \"p95_ms\": " << json_number(percentiles(frame_ms).p95) << "},\n"
+     << "  \"latency\": {\"median_ms\": " << json_number(percentiles(latency_ms).median)
+     << ", \"p95_ms\": " << json_number(percentiles(latency_ms).p95) << "},\n"
      << "  \"local_ba\": {\"count\": " << slam.num_local_ba()
      << ", \"total_cpu_ms\": " << json_number(slam.local_ba_ms()) << ", \"mean_cpu_ms\": "
      << json_number(slam.num_local_ba() > 0
@@ -466,7 +471,10 @@ int run(const Args& a) {
   ds3d::slam::SlamFrontend slam(cfg, source, masker);
 
   const bool tty = !a.quiet && isatty(fileno(stderr)) != 0;
-  std::vector<double> frame_ms;  // wall time between consecutive outputs
+  std::vector<double> frame_ms;    // wall time between consecutive outputs
+  std::vector<double> latency_ms;  // wall time from a frame read (decoded) to its pose out
+  std::mutex read_mutex;           // read_at: written by the reader thread
+  std::unordered_map<std::size_t, std::chrono::steady_clock::time_point> read_at;
   std::vector<FrameRecord> results;
   auto last = std::chrono::steady_clock::now();
   const auto t_start = last;
@@ -475,6 +483,14 @@ int run(const Args& a) {
     const auto now = std::chrono::steady_clock::now();
     frame_ms.push_back(std::chrono::duration<double, std::milli>(now - last).count());
     last = now;
+    {
+      const std::lock_guard<std::mutex> lock(read_mutex);
+      const auto it = read_at.find(r.index);
+      if (it != read_at.end()) {
+        latency_ms.push_back(std::chrono::duration<double, std::milli>(now - it->second).count());
+        read_at.erase(it);
+      }
+    }
     ++done;
     results.push_back(FrameRecord::of(r));
     if (!a.viz.empty() || dynamic_out) {
@@ -511,7 +527,10 @@ int run(const Args& a) {
       return std::nullopt;
     }
     ++next_index;
-    return ds3d::slam::to_frame_input(std::move(f));
+    ds3d::slam::FrameInput in = ds3d::slam::to_frame_input(std::move(f));
+    const std::lock_guard<std::mutex> lock(read_mutex);
+    read_at[in.index] = std::chrono::steady_clock::now();
+    return in;
   };
   ds3d_slam_tool::install_stop_handler();
   try {
@@ -529,7 +548,7 @@ int run(const Args& a) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   if (!stop.message.empty()) std::cerr << "ds3d-slam: " << stop.message << "\n";
   write_outputs(a, slam,
-                report_run(a, slam, results, frame_ms, wall_s, total, stop, input_warnings));
+                report_run(a, slam, results, frame_ms, latency_ms, wall_s, total, stop, input_warnings));
   if (stop.stopped()) {
     std::cerr << "ds3d-slam: stopped early (" << stop.reason << ") after " << results.size()
               << " of " << total << " frames; the trajectory of the frames tracked so far is in "

@@ -244,6 +244,14 @@ TEST_F(Ds3dSlamCli, WarnsAboutDuplicateStampsGapsAndUnmatchedDetections) {
   EXPECT_EQ(w.at("large_gaps").as_number(), 1.0);
   EXPECT_EQ(w.at("frames_without_detections").as_number(), 6.0);
   EXPECT_FALSE(stats.at("stopped_early").as_bool());
+  // Frame-in to pose-out latency, and the source's stages (wall and thread CPU).
+  const auto& latency = stats.at("latency");
+  EXPECT_GT(latency.at("median_ms").as_number(), 0.0);
+  EXPECT_GE(latency.at("p95_ms").as_number(), latency.at("median_ms").as_number());
+  for (const char* group : {"stages", "stages_cpu"}) {
+    EXPECT_GE(stats.at(group).at("detect").at("median_ms").as_number(), 0.0) << group;
+    EXPECT_GE(stats.at(group).at("prepare").at("median_ms").as_number(), 0.0) << group;
+  }
   // A detections file that matches no frame at all is an error naming it.
   std::ofstream(work_ / "other.jsonl") << "{\"timestamp\": 5.0, \"detections\": []}\n";
   r = ds3d::test::run_tool("ds3d-slam",
