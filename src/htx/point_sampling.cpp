@@ -150,8 +150,6 @@ DS3D_NO_FP_CONTRACT Mat ball_group(const Mat& p, const Mat& centres, float r, Ei
   return grouped;
 }
 
-// The 3 nearest tokens of point (x, y, z) (lowest index first on ties) and their squared
-// distances; k = min(3, tokens) entries are valid.
 namespace {
 
 // The three nearest of `count` candidate distances d2 (lowest index first on ties).
@@ -177,6 +175,8 @@ void three_smallest(const float* d2, Eigen::Index count, Eigen::Index k, Eigen::
 
 }  // namespace
 
+// The 3 nearest tokens of every point: the squared distances to all tokens in one vectorised
+// pass (float32 expressions identical to ops.py), then the three smallest.
 DS3D_NO_FP_CONTRACT void three_nn(
     const Mat& tokens, const Mat& points, Eigen::Index k,
     Eigen::Matrix<Eigen::Index, Eigen::Dynamic, 3, Eigen::RowMajor>& idx,

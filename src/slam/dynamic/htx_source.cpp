@@ -192,6 +192,12 @@ PreprocessResult preprocess_depth(const FrameInput& frame, const PinholeCamera& 
                     static_cast<std::ptrdiff_t>(frame.depth.step1()), camera, pp);
 }
 
+// Whether the frame's depth image is one HtxSource can read: CV_16UC1 of the camera's size.
+bool depth_fits(const FrameInput& frame, const PinholeCamera& camera) {
+  return frame.depth.type() == CV_16UC1 && frame.depth.cols == camera.width &&
+         frame.depth.rows == camera.height;
+}
+
 // This frame's floor normal (camera frame, pointing up), when it can fix the upright frame.
 std::optional<Eigen::Vector3d> usable_floor(const PreprocessResult& pre) {
   if (!pre.ground_found) return std::nullopt;
@@ -269,8 +275,7 @@ HtxSource::Network HtxSource::run_network(const PreprocessResult& pre,
 
 std::shared_ptr<const PreparedDetection> HtxSource::prepare(const FrameInput& frame,
                                                             const PinholeCamera& camera) const {
-  if (params_.detect_every != 1 || !run_ || frame.depth.empty() || frame.depth.type() != CV_16UC1 ||
-      frame.depth.cols != camera.width || frame.depth.rows != camera.height) {
+  if (params_.detect_every != 1 || !run_ || frame.depth.empty() || !depth_fits(frame, camera)) {
     return nullptr;
   }
   const std::lock_guard<std::mutex> lock(prepare_mutex_);
@@ -294,11 +299,9 @@ DynamicObjects HtxSource::detect_prepared(const FrameInput& frame, const Pinhole
   last_objects_ = DynamicObjects{};
   boxes_.clear();
   if (frame.depth.empty()) return last_objects_;
-  DS3D_CHECK(frame.depth.type() == CV_16UC1 && frame.depth.cols == camera.width &&
-                 frame.depth.rows == camera.height,
-             "ds3d::slam::HtxSource::detect: depth must be CV_16UC1 of ", camera.width, "x",
-             camera.height, " (got type ", frame.depth.type(), ", ", frame.depth.cols, "x",
-             frame.depth.rows, ")");
+  DS3D_CHECK(depth_fits(frame, camera), "ds3d::slam::HtxSource::detect: depth must be CV_16UC1 of ",
+             camera.width, "x", camera.height, " (got type ", frame.depth.type(), ", ",
+             frame.depth.cols, "x", frame.depth.rows, ")");
   const auto* given = dynamic_cast<const Prepared*>(prepared);
   if (given != nullptr && (given->index != frame.index || given->timestamp != frame.timestamp)) {
     given = nullptr;  // prepared for another frame
