@@ -67,6 +67,15 @@ std::vector<ConfigKey> frontend_keys() {
           [](auto& c) -> auto& { return c.frontend.odometry_fallback; },
           "frame-to-frame odometry when the map cannot be tracked (the frame becomes a keyframe)"),
       key(
+          "frontend.max_acceleration", [](auto& c) -> auto& { return c.frontend.max_acceleration; },
+          "[m/s^2] a tracked pose farther than this x dt^2 from the constant-velocity "
+          "prediction is rejected (0 = off)"),
+      key(
+          "frontend.max_angular_acceleration",
+          [](auto& c) -> auto& { return c.frontend.max_angular_acceleration; },
+          "[rad/s^2] a tracked rotation farther than this x dt^2 from the prediction's is "
+          "rejected (0 = off)"),
+      key(
           "frontend.depth_edge_ratio", [](auto& c) -> auto& { return c.frontend.depth_edge_ratio; },
           "keypoints on a depth step (far > (1 + ratio) x near) at a dynamic region are dropped (0 "
           "= off)"),

@@ -54,6 +54,11 @@ void FrontendConfig::validate() const {
   DS3D_CHECK(reanchor_after_lost >= 0, f, ": reanchor_after_lost must be >= 0 (got ",
              reanchor_after_lost, ")");
   DS3D_CHECK(spare_features >= 0, f, ": spare_features must be >= 0 (got ", spare_features, ")");
+  DS3D_CHECK(std::isfinite(max_acceleration) && max_acceleration >= 0, f,
+             ": max_acceleration must be finite and >= 0 (got ", max_acceleration, ")");
+  DS3D_CHECK(std::isfinite(max_angular_acceleration) && max_angular_acceleration >= 0, f,
+             ": max_angular_acceleration must be finite and >= 0 (got ", max_angular_acceleration,
+             ")");
   DS3D_CHECK(std::isfinite(depth_edge_ratio) && depth_edge_ratio >= 0, f,
              ": depth_edge_ratio must be finite and >= 0 (got ", depth_edge_ratio, ")");
   DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");

@@ -220,6 +220,8 @@ struct SlamFrontend::Impl {
   Eigen::Isometry3d last_T_cw = Eigen::Isometry3d::Identity();
   bool last_tracked = false;
   bool velocity_valid = false;
+  bool velocity_trusted = false;  // velocity from two frames tracked normally (the motion gate)
+  bool last_normal = false;       // the last frame was tracked, not relocalised or re-anchored
   Eigen::Isometry3d velocity = Eigen::Isometry3d::Identity();
   int ref_kf = -1;
   int last_kf_frame = 0;  // frame_counter at the last keyframe
@@ -291,6 +293,9 @@ struct SlamFrontend::Impl {
   bool track_last_frame(FrameData& f, Eigen::Isometry3d& T_cw);  // odometry.cpp
   std::vector<int> local_keyframes(const FrameData& f);
   int track_local_map(FrameData& f, Eigen::Isometry3d& T_cw);
+  bool plausible(const Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred, double dt) const;
+  bool track_from_prediction(FrameData& f, Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred,
+                             double dt, int& inliers);
   TrackResult track(PreparedFrame pf);
 
   // ---- mapping.cpp: map points, fusion, local BA scheduling and applying

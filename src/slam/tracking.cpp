@@ -313,6 +313,64 @@ int SlamFrontend::Impl::track_local_map(FrameData& f, Eigen::Isometry3d& T_cw) {
   return inliers;
 }
 
+// FrontendConfig::max_acceleration / max_angular_acceleration: can the camera have moved from the
+// constant-velocity prediction `pred` to `T_cw` in the `dt` seconds since the last frame?
+bool SlamFrontend::Impl::plausible(const Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred,
+                                   double dt) const {
+  const double dt2 = dt * dt;
+  if (cfg.max_acceleration > 0) {
+    const double moved = (T_cw.inverse().translation() - pred.inverse().translation()).norm();
+    if (moved > cfg.max_acceleration * dt2) return false;
+  }
+  if (cfg.max_angular_acceleration > 0) {
+    const double turned = Eigen::AngleAxisd(pred.linear().transpose() * T_cw.linear()).angle();
+    if (turned > cfg.max_angular_acceleration * dt2) return false;
+  }
+  return true;
+}
+
+// The motion gate's second hypothesis (FrontendConfig::max_acceleration): the last frame's points
+// matched at the prediction, only the matches that agree with it (4 × the χ² threshold) start the
+// pose-only optimisation, then the local map. True (T_cw and inliers set) when that pose is
+// plausible and has min_tracked_inliers local-map inliers.
+bool SlamFrontend::Impl::track_from_prediction(FrameData& f, Eigen::Isometry3d& T_cw,
+                                               const Eigen::Isometry3d& pred, double dt,
+                                               int& inliers) {
+  for (auto& p : points) {  // undo the first attempt's "seen in this frame" marks
+    if (p.last_frame_seen == frame_counter)
+      p.last_frame_seen = std::numeric_limits<std::size_t>::max();
+    if (p.local_stamp == frame_counter) p.local_stamp = std::numeric_limits<std::size_t>::max();
+  }
+  std::vector<int> cand;
+  for (const int pid : last.points) {
+    if (pid >= 0) cand.push_back(pid);
+  }
+  std::fill(f.points.begin(), f.points.end(), -1);
+  Eigen::Isometry3d T = pred;
+  search_by_projection(f, T, cand, 15.0, false, frame_counter);
+  int agree = 0;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    if (f.points[i] < 0) continue;
+    const Observation o = observation(f, i);
+    double r[3] = {0, 0, 0};
+    const int dim = reprojection_residual(
+        k, pred, points[static_cast<std::size_t>(f.points[i])].pos, o, r, nullptr, nullptr);
+    const double chi2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+    const double th = 4.0 * (dim == 3 ? cfg.pose.chi2_stereo : cfg.pose.chi2_mono);
+    if (dim == 0 || chi2 > th) {
+      f.points[i] = -1;
+    } else {
+      ++agree;
+    }
+  }
+  if (agree < 10 || optimize_frame(f, T) < 10) return false;
+  const int n = track_local_map(f, T);
+  if (n < cfg.min_tracked_inliers || !plausible(T, pred, dt)) return false;
+  T_cw = T;
+  inliers = n;
+  return true;
+}
+
 TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
   const auto t0 = Clock::now();
   const double c0 = thread_cpu_ms();
@@ -322,6 +380,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
   DS3D_CHECK(in.timestamp >= last_timestamp,
              "ds3d::slam::SlamFrontend::track: time went backwards: frame ", in.index,
              " has timestamp ", in.timestamp, " < previous ", last_timestamp);
+  const double prev_ts = last_timestamp;
   last_timestamp = in.timestamp;
   apply_ba_if_due(false);
 
@@ -410,11 +469,30 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
         ok = true;
       }
     }
+    const Eigen::Isometry3d pred = velocity * last_T_cw;
+    if (ok && !relocalized && velocity_trusted && in.timestamp > prev_ts &&
+        !plausible(T_cw, pred, in.timestamp - prev_ts)) {
+      // Two hypotheses: keep the first pose unless tracking from the prediction gives a
+      // plausible one.
+      FrameData retried = f;
+      Eigen::Isometry3d T = T_cw;
+      int n = 0;
+      if (track_from_prediction(retried, T, pred, in.timestamp - prev_ts, n)) {
+        f = std::move(retried);
+        T_cw = T;
+        inliers = n;
+        res.motion_gated = true;
+      }
+    }
+    // The velocity of the next frame's motion gate must come from two frames tracked here, not
+    // from a re-anchored or relocalised one, whose pose may be far off.
+    const bool normal = ok && !relocalized;
     if (ok) {
       res.state = relocalized ? TrackState::kRelocalized : TrackState::kTracking;
       lost_count = 0;
       velocity = T_cw * last_T_cw.inverse();
       velocity_valid = last_tracked;
+      velocity_trusted = normal && last_normal;
       if (res.odometry || need_keyframe(f, inliers)) {
         const int id = add_keyframe(f, T_cw, in);
         f = keyframes[static_cast<std::size_t>(id)].data;
@@ -426,6 +504,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
       ++lost_count;
       T_cw = last_T_cw;
       velocity_valid = false;
+      velocity_trusted = false;
       res.state = TrackState::kLost;
       std::fill(f.points.begin(), f.points.end(), -1);
       if (cfg.reanchor_after_lost > 0 && lost_count >= cfg.reanchor_after_lost &&
@@ -466,6 +545,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
   last = std::move(f);
   last_T_cw = T_cw;
   last_tracked = ok;
+  last_normal = res.state == TrackState::kTracking;
   have_last = true;
   ++frame_counter;
   res.times = pf.times;

@@ -251,10 +251,12 @@ struct FrameRecord {
   int depth_edge = 0;  // num_depth_edge
   bool keyframe = false;
   bool odometry = false;
+  bool motion_gated = false;
 
   static FrameRecord of(const ds3d::slam::TrackResult& r) {
-    return {r.tracked,      r.state,       r.times,          r.num_features, r.num_dynamic,
-            r.num_refilled, r.num_inliers, r.num_depth_edge, r.keyframe,     r.odometry};
+    return {r.tracked,     r.state,        r.times,       r.num_features,
+            r.num_dynamic, r.num_refilled, r.num_inliers, r.num_depth_edge,
+            r.keyframe,    r.odometry,     r.motion_gated};
   }
 };
 
@@ -291,7 +293,8 @@ void write_per_frame(std::ostream& js, const std::vector<FrameRecord>& results) 
       {"inliers", [](const R& r) { return r.inliers; }},
       {"depth_edge", [](const R& r) { return r.depth_edge; }},
       {"keyframe", [](const R& r) { return r.keyframe ? 1 : 0; }},
-      {"odometry", [](const R& r) { return r.odometry ? 1 : 0; }}};
+      {"odometry", [](const R& r) { return r.odometry ? 1 : 0; }},
+      {"motion_gated", [](const R& r) { return r.motion_gated ? 1 : 0; }}};
   for (const auto& [name, get] : columns) {
     js << ",\n    \"" << name << "\": [";
     for (std::size_t i = 0; i < results.size(); ++i) js << (i > 0 ? ", " : "") << get(results[i]);
@@ -303,9 +306,8 @@ void write_per_frame(std::ostream& js, const std::vector<FrameRecord>& results) 
 // Prints the one-line summary (unless --quiet) and returns the --stats JSON.
 std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
                        const std::vector<FrameRecord>& results, const std::vector<double>& frame_ms,
-                       const std::vector<double>& latency_ms,
-                       double wall_s, std::size_t total, const StopInfo& stop,
-                       const ds3d_slam_tool::InputWarnings& warn) {
+                       const std::vector<double>& latency_ms, double wall_s, std::size_t total,
+                       const StopInfo& stop, const ds3d_slam_tool::InputWarnings& warn) {
   const ds3d::slam::SlamConfig& c = a.config;
   std::size_t tracked = 0;
   std::size_t lost = 0;
@@ -547,8 +549,9 @@ int run(const Args& a) {
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   if (!stop.message.empty()) std::cerr << "ds3d-slam: " << stop.message << "\n";
-  write_outputs(a, slam,
-                report_run(a, slam, results, frame_ms, latency_ms, wall_s, total, stop, input_warnings));
+  write_outputs(
+      a, slam,
+      report_run(a, slam, results, frame_ms, latency_ms, wall_s, total, stop, input_warnings));
   if (stop.stopped()) {
     std::cerr << "ds3d-slam: stopped early (" << stop.reason << ") after " << results.size()
               << " of " << total << " frames; the trajectory of the frames tracked so far is in "

@@ -435,6 +435,31 @@ TEST(SlamFrontend, DepthEdgeKeypointsAtDynamicRegionsAreRemoved) {
   EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
 }
 
+// The motion gate (max_acceleration, max_angular_acceleration) never fires on a smooth camera
+// path: the poses stay those of the run without it, bit for bit. Bad bounds are an error.
+TEST(SlamFrontend, MotionGateLeavesPlausibleMotionAlone) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 30, 12);
+  FrontendConfig cfg = synth_config();
+  cfg.mapping_thread = false;
+  const SlamRun off = run(frames, cfg, false);
+  cfg.max_acceleration = 60;
+  cfg.max_angular_acceleration = 60;
+  const SlamRun on = run(frames, cfg, false);
+  ASSERT_EQ(on.trajectory.size(), off.trajectory.size());
+  for (std::size_t i = 0; i < on.trajectory.size(); ++i) {
+    EXPECT_FALSE(on.results[i].motion_gated) << "frame " << i;
+    EXPECT_TRUE(on.trajectory[i].T_world_cam.matrix() == off.trajectory[i].T_world_cam.matrix())
+        << "frame " << i;
+  }
+  EXPECT_LE(on.ate, 0.005);
+  FrontendConfig bad = synth_config();
+  bad.max_acceleration = -1;
+  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+  bad.max_acceleration = 0;
+  bad.max_angular_acceleration = std::nan("");
+  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+}
+
 TEST(SlamFrontend, MasksOfTheWrongSizeAreAnError) {
   class Bad final : public ds3d::slam::DynamicFeatureMasker {
    public:

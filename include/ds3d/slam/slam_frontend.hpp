@@ -85,6 +85,20 @@ struct FrontendConfig {
   /// frame tracked so becomes a keyframe, so the map continues from it. Off: such frames are
   /// lost (and re-anchored after reanchor_after_lost frames).
   bool odometry_fallback = false;
+  /// Motion gate: physical bounds of the camera's motion [m/s²], [rad/s²] (0 = off), >= 0.
+  /// A tracked pose whose camera centre lies farther than max_acceleration · dt² from the
+  /// constant-velocity prediction (dt = time since the last frame), or whose rotation differs
+  /// from the prediction's by more than max_angular_acceleration · dt², is what matches on a
+  /// moving object that dominates the frame produce. The frame is then tracked a second time
+  /// from the prediction: the last frame's points matched at the predicted pose, only the
+  /// matches that agree with it (4 × the χ² thresholds) start the pose-only optimisation, then
+  /// the local map. That pose replaces the first one when it is within the same bounds and has
+  /// min_tracked_inliers inliers; otherwise the first pose stays. The gate needs a velocity from
+  /// two frames tracked in a row (not relocalised or re-anchored). Off by default: on the crowd
+  /// suite it removes the worst drag (crowd_cross seed 1) but is not better everywhere
+  /// (docs/slam.md, "Motion gate").
+  double max_acceleration = 0;
+  double max_angular_acceleration = 0;  ///< see max_acceleration
   /// Keypoints on an occluding contour at a dynamic region are removed from tracking and
   /// mapping (0 = off), >= 0: those with a depth sample (at 4 and 8 px × their level's scale,
   /// 16 directions, and their own pixel) in a source box's image rectangle or on its pixel mask
@@ -172,6 +186,9 @@ struct TrackResult {
   /// The pose came from frame-to-frame odometry (FrontendConfig::odometry_fallback): the map
   /// could not be tracked; the frame then became a keyframe.
   bool odometry = false;
+  /// The first pose broke FrontendConfig::max_acceleration or max_angular_acceleration and the
+  /// pose tracked from the constant-velocity prediction replaced it.
+  bool motion_gated = false;
   int num_features = 0;  ///< keypoints extracted
   int num_dynamic = 0;   ///< keypoints the dynamic filter removed
   int num_refilled = 0;  ///< spare keypoints added in their place (FrontendConfig::spare_features)

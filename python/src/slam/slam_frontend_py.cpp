@@ -249,6 +249,9 @@ void bind_track_result(py::module_& m) {
       .def_readonly("tracked", &TrackResult::tracked, "state is initialized/tracking/relocalized")
       .def_readonly("keyframe", &TrackResult::keyframe, "this frame became a keyframe")
       .def_readonly("odometry", &TrackResult::odometry, "pose from the odometry fallback")
+      .def_readonly("motion_gated", &TrackResult::motion_gated,
+                    "the first pose broke the motion bounds; the one tracked from the "
+                    "constant-velocity prediction replaced it")
       .def_readonly("num_features", &TrackResult::num_features, "keypoints extracted")
       .def_readonly("num_dynamic", &TrackResult::num_dynamic,
                     "keypoints the dynamic filter removed")
