@@ -149,14 +149,6 @@ class BaCost final : public ceres::CostFunction {
   Observation obs_;
 };
 
-double chi2_of(const StereoIntrinsics& k, const Eigen::Isometry3d& T, const Eigen::Vector3d& p,
-               const Observation& obs, bool* in_front) {
-  double r[3] = {0, 0, 0};
-  const int dim = reprojection_residual(k, T, p, obs, r, nullptr, nullptr);
-  *in_front = dim > 0;
-  return r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-}
-
 ceres::Solver::Options solver_options(int iterations, ceres::LinearSolverType type) {
   ceres::Solver::Options o;
   o.linear_solver_type = type;
@@ -228,6 +220,14 @@ int reprojection_residual(const StereoIntrinsics& k, const Eigen::Isometry3d& T_
   return dim;
 }
 
+double reprojection_chi2(const StereoIntrinsics& k, const Eigen::Isometry3d& T_cam_world,
+                         const Eigen::Vector3d& p_world, const Observation& obs, bool* in_front) {
+  double r[3] = {0, 0, 0};
+  const int dim = reprojection_residual(k, T_cam_world, p_world, obs, r, nullptr, nullptr);
+  if (in_front != nullptr) *in_front = dim > 0;
+  return r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+}
+
 void PoseOptimizerParams::validate() const {
   constexpr const char* f = "ds3d::slam::PoseOptimizerParams";
   DS3D_CHECK(rounds >= 1, f, ": rounds must be >= 1 (got ", rounds, ")");
@@ -293,7 +293,7 @@ PoseOptimizationResult optimize_pose(const StereoIntrinsics& k, const Eigen::Iso
     result.T_cam_world = T;
     for (std::size_t i = 0; i < n; ++i) {
       bool front = false;
-      const double chi2 = chi2_of(k, T, points[i], observations[i], &front);
+      const double chi2 = reprojection_chi2(k, T, points[i], observations[i], &front);
       const double th = observations[i].stereo() ? params.chi2_stereo : params.chi2_mono;
       inl[i] = static_cast<std::uint8_t>(front && chi2 <= th);
     }
@@ -343,9 +343,9 @@ LocalBaResult local_bundle_adjustment(const StereoIntrinsics& k,
     for (std::size_t i = 0; i < observations.size(); ++i) {
       const auto& o = observations[i];
       bool front = false;
-      const double chi2 =
-          chi2_of(k, from_params(x[static_cast<std::size_t>(o.keyframe)].data()),
-                  Eigen::Vector3d(p[static_cast<std::size_t>(o.point)].data()), o.obs, &front);
+      const double chi2 = reprojection_chi2(
+          k, from_params(x[static_cast<std::size_t>(o.keyframe)].data()),
+          Eigen::Vector3d(p[static_cast<std::size_t>(o.point)].data()), o.obs, &front);
       const double th = o.obs.stereo() ? params.chi2_stereo : params.chi2_mono;
       result.outlier[i] = static_cast<std::uint8_t>(!front || chi2 > th);
     }

@@ -177,11 +177,11 @@ void SlamFrontend::Impl::refine_points_from_frames() {
     }
     int inliers = 0;
     for (const auto& ob : obs) {
-      double res[3];
-      const int d = reprojection_residual(k, ob.T_cw, x, ob.o, res, nullptr, nullptr);
-      if (d == 0) continue;
-      const double chi2 = Eigen::Map<const Eigen::VectorXd>(res, d).squaredNorm();
-      inliers += chi2 <= (d == 3 ? cfg.local_ba.chi2_stereo : cfg.local_ba.chi2_mono) ? 1 : 0;
+      bool front = false;
+      const double chi2 = reprojection_chi2(k, ob.T_cw, x, ob.o, &front);
+      if (!front) continue;
+      inliers +=
+          chi2 <= (ob.o.stereo() ? cfg.local_ba.chi2_stereo : cfg.local_ba.chi2_mono) ? 1 : 0;
     }
     if (inliers >= 2 && x.allFinite()) p.pos = x;
   }

@@ -352,12 +352,11 @@ bool SlamFrontend::Impl::track_from_prediction(FrameData& f, Eigen::Isometry3d& 
   for (std::size_t i = 0; i < f.size(); ++i) {
     if (f.points[i] < 0) continue;
     const Observation o = observation(f, i);
-    double r[3] = {0, 0, 0};
-    const int dim = reprojection_residual(
-        k, pred, points[static_cast<std::size_t>(f.points[i])].pos, o, r, nullptr, nullptr);
-    const double chi2 = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-    const double th = 4.0 * (dim == 3 ? cfg.pose.chi2_stereo : cfg.pose.chi2_mono);
-    if (dim == 0 || chi2 > th) {
+    bool front = false;
+    const double chi2 =
+        reprojection_chi2(k, pred, points[static_cast<std::size_t>(f.points[i])].pos, o, &front);
+    const double th = 4.0 * (o.stereo() ? cfg.pose.chi2_stereo : cfg.pose.chi2_mono);
+    if (!front || chi2 > th) {
       f.points[i] = -1;
     } else {
       ++agree;
@@ -469,8 +468,9 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
         ok = true;
       }
     }
-    const Eigen::Isometry3d pred = velocity * last_T_cw;
-    if (ok && !relocalized && velocity_trusted && in.timestamp > prev_ts &&
+    const bool gate = cfg.max_acceleration > 0 || cfg.max_angular_acceleration > 0;
+    const Eigen::Isometry3d pred = gate ? velocity * last_T_cw : T_cw;
+    if (gate && ok && !relocalized && velocity_trusted && in.timestamp > prev_ts &&
         !plausible(T_cw, pred, in.timestamp - prev_ts)) {
       // Two hypotheses: keep the first pose unless tracking from the prediction gives a
       // plausible one.

@@ -94,6 +94,28 @@ TEST_P(JacobianTest, AnalyticMatchesCentralDifferences) {
 
 INSTANTIATE_TEST_SUITE_P(MonoAndStereo, JacobianTest, ::testing::Bool());
 
+TEST(ReprojectionChi2, IsTheSquaredResidualAndFlagsPointsBehind) {
+  const Eigen::Isometry3d T = make_pose({0.1, -0.2, 0.05}, {0.3, -0.1, 0.2});
+  const Eigen::Vector3d pw = T.inverse() * Eigen::Vector3d(0.4, -0.3, 2.5);
+  for (const bool stereo : {false, true}) {
+    Observation obs = observe(T, pw, stereo);
+    obs.pixel += Eigen::Vector2d(1.5, -2.0);
+    double r[3] = {0, 0, 0};
+    const int dim = ds3d::slam::reprojection_residual(kK, T, pw, obs, r, nullptr, nullptr);
+    double expected = 0;
+    for (int i = 0; i < dim; ++i) expected += r[i] * r[i];
+    bool front = false;
+    EXPECT_DOUBLE_EQ(ds3d::slam::reprojection_chi2(kK, T, pw, obs, &front), expected);
+    EXPECT_TRUE(front);
+    EXPECT_GT(expected, 1.0);
+  }
+  bool front = true;
+  const Eigen::Vector3d behind = T.inverse() * Eigen::Vector3d(0.0, 0.0, -1.0);
+  EXPECT_EQ(ds3d::slam::reprojection_chi2(kK, T, behind, observe(T, pw, true), &front), 0.0);
+  EXPECT_FALSE(front);
+  EXPECT_EQ(ds3d::slam::reprojection_chi2(kK, T, pw, observe(T, pw, false)), 0.0);
+}
+
 TEST(ReprojectionResidual, PointBehindCameraGivesZeroDimension) {
   double r[3] = {1, 1, 1};
   double j[18];

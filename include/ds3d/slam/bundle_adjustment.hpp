@@ -65,6 +65,15 @@ int reprojection_residual(const StereoIntrinsics& k, const Eigen::Isometry3d& T_
                           const Eigen::Vector3d& p_world, const Observation& obs, double* residual,
                           double* j_pose, double* j_point);
 
+/// χ² of `p_world` seen at `obs` from T_cam_world: the squared norm of reprojection_residual
+/// (weighted, 2 or 3 rows), as the χ² tests of optimize_pose and local_bundle_adjustment use it.
+/// @param in_front if non-null, set to whether the point is in front of the camera (z > 1e-6);
+///        behind it, the χ² is 0
+[[nodiscard]] double reprojection_chi2(const StereoIntrinsics& k,
+                                       const Eigen::Isometry3d& T_cam_world,
+                                       const Eigen::Vector3d& p_world, const Observation& obs,
+                                       bool* in_front = nullptr);
+
 /// χ² thresholds and schedule of the pose-only optimisation (ORB-SLAM2's PoseOptimization).
 struct PoseOptimizerParams {
   int rounds = 4;              ///< optimisation rounds with outlier re-classification, >= 1
