@@ -67,8 +67,13 @@ int reprojection_residual(const StereoIntrinsics& k, const Eigen::Isometry3d& T_
 
 /// χ² of `p_world` seen at `obs` from T_cam_world: the squared norm of reprojection_residual
 /// (weighted, 2 or 3 rows), as the χ² tests of optimize_pose and local_bundle_adjustment use it.
-/// @param in_front if non-null, set to whether the point is in front of the camera (z > 1e-6);
-///        behind it, the χ² is 0
+/// @param k           intrinsics (undistorted) and bf
+/// @param T_cam_world pose of the camera (world → camera)
+/// @param p_world     the point [m, world]
+/// @param obs         where it was observed (pixel, u_right when it has depth, weight)
+/// @param in_front    if non-null, set to whether the point is in front of the camera
+///        (z > 1e-6)
+/// @return the χ² (≥ 0, dimensionless); 0 when the point is behind the camera
 [[nodiscard]] double reprojection_chi2(const StereoIntrinsics& k,
                                        const Eigen::Isometry3d& T_cam_world,
                                        const Eigen::Vector3d& p_world, const Observation& obs,
