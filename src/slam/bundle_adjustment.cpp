@@ -196,14 +196,21 @@ int reprojection_residual(const StereoIntrinsics& k, const Eigen::Isometry3d& T_
   const double v = k.fy * pc.y() * iz + k.cy;
   residual[0] = s * (obs.pixel.x() - u);
   residual[1] = s * (obs.pixel.y() - v);
-  if (dim == 3) residual[2] = s * (obs.u_right - (u - k.bf * iz));
+  const bool disparity = obs.disparity_inv_sigma2 > 0;
+  const double sd = disparity ? std::sqrt(obs.disparity_inv_sigma2) : s;
+  if (dim == 3) {
+    residual[2] = disparity ? sd * ((obs.pixel.x() - obs.u_right) - k.bf * iz)
+                            : s * (obs.u_right - (u - k.bf * iz));
+  }
   if (j_pose == nullptr && j_point == nullptr) return dim;
-  // d residual / d p_cam = -s · d prediction / d p_cam
+  // d residual / d p_cam = -weight · d prediction / d p_cam
   Eigen::Matrix<double, 3, 3, Eigen::RowMajor> jc;
   jc << k.fx * iz, 0.0, -k.fx * pc.x() * iz2,  //
       0.0, k.fy * iz, -k.fy * pc.y() * iz2,    //
       k.fx * iz, 0.0, -k.fx * pc.x() * iz2 + k.bf * iz2;
-  jc *= -s;
+  if (disparity) jc.row(2) << 0.0, 0.0, -k.bf * iz2;
+  jc.topRows<2>() *= -s;
+  jc.row(2) *= -sd;
   if (j_pose != nullptr) {
     // d p_cam / d (ω, v) = [-[p_cam]× | I] for the left perturbation.
     Eigen::Matrix<double, 3, 6, Eigen::RowMajor> dp;

@@ -63,6 +63,10 @@ std::vector<ConfigKey> frontend_keys() {
           "with a dynamic source: far keypoints seen again by the next keyframe at a consistent "
           "depth become map points"),
       key(
+          "frontend.disparity_sigma", [](auto& c) -> auto& { return c.frontend.disparity_sigma; },
+          "[px] sigma of the disparity bf/z of observations with depth (0 = ORB-SLAM2's u_right "
+          "with the octave's sigma)"),
+      key(
           "frontend.odometry_fallback",
           [](auto& c) -> auto& { return c.frontend.odometry_fallback; },
           "frame-to-frame odometry when the map cannot be tracked (the frame becomes a keyframe)"),

@@ -54,6 +54,8 @@ void FrontendConfig::validate() const {
   DS3D_CHECK(reanchor_after_lost >= 0, f, ": reanchor_after_lost must be >= 0 (got ",
              reanchor_after_lost, ")");
   DS3D_CHECK(spare_features >= 0, f, ": spare_features must be >= 0 (got ", spare_features, ")");
+  DS3D_CHECK(std::isfinite(disparity_sigma) && disparity_sigma >= 0, f,
+             ": disparity_sigma must be finite and >= 0 (got ", disparity_sigma, ")");
   DS3D_CHECK(std::isfinite(max_acceleration) && max_acceleration >= 0, f,
              ": max_acceleration must be finite and >= 0 (got ", max_acceleration, ")");
   DS3D_CHECK(std::isfinite(max_angular_acceleration) && max_angular_acceleration >= 0, f,

@@ -111,6 +111,7 @@ struct FrameData {
   std::vector<Eigen::Vector2f> uv;
   std::vector<float> depth;
   std::vector<int> octave;
+  std::vector<float> disp_inv_sigma2;  // FrontendConfig::disparity_sigma; empty when off
   cv::Mat desc;
   std::vector<int> points;  // map point id or -1
   FeatureGrid grid;
@@ -179,6 +180,13 @@ inline constexpr std::uint8_t kDepthEdgeFlag = 2;
 /// farthest valid depth > (1 + ratio) × nearest. Returns how many (depth_edges.cpp).
 int mark_depth_edges(PreparedFrame& pf, const PinholeCamera& camera, const OrbExtractor& extractor,
                      double ratio);
+
+/// Per feature of `pf`, the information 1/σ_d² [px⁻²] of its disparity bf/z: σ_d² =
+/// cfg.disparity_sigma² + the largest disparity difference to the depth 2 px × level scale
+/// around it (8 directions; the whole disparity when one of them has no depth). 0 for features
+/// without depth, all 0 when cfg.disparity_sigma is 0 (disparity_sigma.cpp).
+std::vector<float> disparity_inv_sigma2(const PreparedFrame& pf, const FrontendConfig& cfg,
+                                        const OrbExtractor& extractor);
 
 // The front-end's sources use the short names.
 using detail::BaJob;
@@ -269,6 +277,7 @@ struct SlamFrontend::Impl {
     o.u_right = f.u_right(i, k.bf);
     o.has_depth = f.depth[i] > 0;
     o.inv_sigma2 = inv_sigma2[static_cast<std::size_t>(f.octave[i])];
+    if (!f.disp_inv_sigma2.empty()) o.disparity_inv_sigma2 = f.disp_inv_sigma2[i];
     return o;
   }
 

@@ -21,11 +21,14 @@ FrameData SlamFrontend::Impl::make_frame_data(const PreparedFrame& pf) const {
   FrameData f;
   const auto& feat = pf.features;
   f.close_depth = feat.close_depth;
+  const std::vector<float> w =
+      cfg.disparity_sigma > 0 ? disparity_inv_sigma2(pf, cfg, extractor) : std::vector<float>{};
   for (std::size_t i = 0; i < feat.size(); ++i) {
     if (!pf.dynamic.empty() && pf.dynamic[i] != 0) continue;
     f.uv.push_back(feat.undistorted[i]);
     f.depth.push_back(feat.depth[i]);
     f.octave.push_back(feat.keypoints[i].octave);
+    if (!w.empty()) f.disp_inv_sigma2.push_back(w[i]);
   }
   f.desc.create(static_cast<int>(f.uv.size()), 32, CV_8U);
   int r = 0;

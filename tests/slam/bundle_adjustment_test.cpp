@@ -41,10 +41,13 @@ double rotation_error_rad(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b
   return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
 }
 
-class JacobianTest : public ::testing::TestWithParam<bool> {};
+// The three residual forms: monocular, ORB-SLAM2's u_right, and the disparity term.
+enum class Form { kMono, kURight, kDisparity };
+
+class JacobianTest : public ::testing::TestWithParam<Form> {};
 
 TEST_P(JacobianTest, AnalyticMatchesCentralDifferences) {
-  const bool stereo = GetParam();
+  const bool stereo = GetParam() != Form::kMono;
   ds3d::test::Rng rng(7);
   for (int trial = 0; trial < 20; ++trial) {
     const Eigen::Isometry3d T =
@@ -54,7 +57,9 @@ TEST_P(JacobianTest, AnalyticMatchesCentralDifferences) {
     const Eigen::Vector3d pc(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(1, 4));
     const Eigen::Vector3d pw = T.inverse() * pc;
     Observation obs = observe(T, pw, stereo);
+    if (GetParam() == Form::kDisparity) obs.disparity_inv_sigma2 = 1.0 / (0.2 * 0.2);
     obs.pixel += Eigen::Vector2d(rng.normal(), rng.normal()) * 3.0;  // non-zero residual
+    obs.u_right += rng.normal() * 2.0;
     double r[3];
     double jp[18];
     double jx[9];
@@ -92,7 +97,28 @@ TEST_P(JacobianTest, AnalyticMatchesCentralDifferences) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(MonoAndStereo, JacobianTest, ::testing::Bool());
+INSTANTIATE_TEST_SUITE_P(MonoStereoDisparity, JacobianTest,
+                         ::testing::Values(Form::kMono, Form::kURight, Form::kDisparity));
+
+TEST(ReprojectionResidual, DisparityRowIsTheDisparityErrorOverItsSigma) {
+  const Eigen::Isometry3d T = make_pose({0.1, -0.2, 0.05}, {0.3, -0.1, 0.2});
+  const Eigen::Vector3d pc(0.4, -0.3, 2.5);
+  const Eigen::Vector3d pw = T.inverse() * pc;
+  Observation obs = observe(T, pw, true);
+  obs.pixel.x() += 1.5;  // the u row and the measured disparity u − u_right both change
+  obs.u_right += 1.25;   // measured disparity = bf/z + 0.25 px
+  double r_ur[3];
+  ASSERT_EQ(ds3d::slam::reprojection_residual(kK, T, pw, obs, r_ur, nullptr, nullptr), 3);
+  obs.disparity_inv_sigma2 = 1.0 / (0.1 * 0.1);
+  double r[3];
+  ASSERT_EQ(ds3d::slam::reprojection_residual(kK, T, pw, obs, r, nullptr, nullptr), 3);
+  EXPECT_DOUBLE_EQ(r[0], r_ur[0]);
+  EXPECT_DOUBLE_EQ(r[1], r_ur[1]);
+  EXPECT_NEAR(r[2], 0.25 / 0.1, 1e-9);     // σ_d = 0.1 px
+  EXPECT_NEAR(r_ur[2], 1.25 / 1.2, 1e-9);  // the u_right error over the octave σ
+  EXPECT_NEAR(ds3d::slam::reprojection_chi2(kK, T, pw, obs), r[0] * r[0] + r[1] * r[1] + 6.25,
+              1e-9);
+}
 
 TEST(ReprojectionChi2, IsTheSquaredResidualAndFlagsPointsBehind) {
   const Eigen::Isometry3d T = make_pose({0.1, -0.2, 0.05}, {0.3, -0.1, 0.2});

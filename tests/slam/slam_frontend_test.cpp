@@ -435,6 +435,32 @@ TEST(SlamFrontend, DepthEdgeKeypointsAtDynamicRegionsAreRemoved) {
   EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
 }
 
+// The disparity term (disparity_sigma > 0) changes the poses, keeps a static room as accurate as
+// ORB-SLAM2's u_right term does, and is deterministic; a negative or NaN sigma is an error.
+TEST(SlamFrontend, DisparityTermKeepsAStaticRoomAccurate) {
+  const auto frames = render(ds3d::synth::Scenario::kStaticRoom, 30, 12);
+  FrontendConfig cfg = synth_config();
+  cfg.mapping_thread = false;
+  const SlamRun off = run(frames, cfg, false);
+  cfg.disparity_sigma = 0.5;
+  const SlamRun on = run(frames, cfg, false);
+  const SlamRun again = run(frames, cfg, false);
+  ASSERT_EQ(on.trajectory.size(), off.trajectory.size());
+  bool differs = false;
+  for (std::size_t i = 0; i < on.trajectory.size(); ++i) {
+    differs |= on.trajectory[i].T_world_cam.matrix() != off.trajectory[i].T_world_cam.matrix();
+    EXPECT_TRUE(on.trajectory[i].T_world_cam.matrix() == again.trajectory[i].T_world_cam.matrix())
+        << "frame " << i;
+  }
+  EXPECT_TRUE(differs);
+  EXPECT_LE(on.ate, 0.005);
+  FrontendConfig bad = synth_config();
+  bad.disparity_sigma = -0.5;
+  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+  bad.disparity_sigma = std::nan("");
+  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+}
+
 // The motion gate (max_acceleration, max_angular_acceleration) never fires on a smooth camera
 // path: the poses stay those of the run without it, bit for bit. Bad bounds are an error.
 TEST(SlamFrontend, MotionGateLeavesPlausibleMotionAlone) {

@@ -8,7 +8,8 @@
 /// reliable depth z is a "stereo" observation (u, v, u_r) with the virtual right-camera coordinate
 /// u_r = u − bf / z; one without is a monocular (u, v) observation. Residuals are weighted by the
 /// keypoint's octave (1/σ² = scale^-2) and wrapped in a Huber loss; an observation is an outlier
-/// when its χ² exceeds the 95 % quantile (5.991 for 2 DoF, 7.815 for 3 DoF).
+/// when its χ² exceeds the 95 % quantile (5.991 for 2 DoF, 7.815 for 3 DoF). Optionally the third
+/// row is the disparity bf/z with a σ of its own (Observation::disparity_inv_sigma2).
 ///
 /// Poses are T_cam_world (world → camera). Their Ceres parameter block is 7 doubles
 /// `[qx qy qz qw tx ty tz]` on the SO(3)×R³ manifold with the *left* perturbation
@@ -46,12 +47,18 @@ struct Observation {
   double u_right = 0.0;     ///< virtual right u [px] (u − bf/z); used only when has_depth
   bool has_depth = false;   ///< true: 3-DoF (u, v, u_right) observation; false: monocular (u, v)
   double inv_sigma2 = 1.0;  ///< information weight 1/σ² of the keypoint's octave, > 0
+  /// 0: the third row is ORB-SLAM2's u_right residual, weighted by inv_sigma2. > 0: it is the
+  /// disparity residual (u − u_right) − bf/z instead, weighted by this 1/σ_d² [px⁻²]: a depth
+  /// sensor's own noise, independent of the keypoint's octave (FrontendConfig::disparity_sigma).
+  double disparity_inv_sigma2 = 0.0;
   /// True for a 3-DoF (u, v, u_right) observation: the same as has_depth.
   [[nodiscard]] bool stereo() const noexcept { return has_depth; }
 };
 
 /// Weighted reprojection residual of `p_world` seen at `obs` from pose T_cam_world, with its
-/// analytic Jacobians. Residual = sqrt(inv_sigma2) · (observed − predicted); rows (u, v[, u_r]).
+/// analytic Jacobians. Residual = sqrt(inv_sigma2) · (observed − predicted); rows (u, v[, u_r]);
+/// with obs.disparity_inv_sigma2 > 0 the third row is sqrt(disparity_inv_sigma2) · (observed
+/// disparity u − u_r − bf/z) instead.
 /// @param k        intrinsics (undistorted) and bf
 /// @param T_cam_world pose of the camera (world → camera)
 /// @param p_world  the point [m, world]

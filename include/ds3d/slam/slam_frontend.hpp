@@ -113,6 +113,12 @@ struct FrontendConfig {
   /// a point from; two agreeing views are not. Without a source it stays off: moving people
   /// far away agree across two views too, and nothing removes them.
   bool confirm_far_points = true;
+  /// The depth term of every observation with depth [px of disparity bf/z], >= 0. 0: ORB-SLAM2's
+  /// virtual right coordinate u_r = u − bf/z with the keypoint's octave σ, which caps what depth
+  /// adds at what one more pixel coordinate adds. > 0: the disparity bf/z with this σ of its
+  /// own (a Kinect-like sensor's σ_z ∝ z² is a constant disparity σ), so that depth constrains
+  /// the pose as much as the sensor allows.
+  double disparity_sigma = 0;
   double keyframe_ref_ratio = 0.75;  ///< a keyframe is needed when the frame tracks fewer than
                                      ///< this fraction of the reference keyframe's well-observed
                                      ///< points (ORB-SLAM2 RGB-D: 0.75), in (0, 1]
