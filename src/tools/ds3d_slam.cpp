@@ -252,6 +252,7 @@ struct FrameRecord {
   bool keyframe = false;
   bool odometry = false;
   bool motion_gated = false;
+  double interval_ms = 0;  // wall time since the previous pose out (the first: since the start)
 
   static FrameRecord of(const ds3d::slam::TrackResult& r) {
     return {r.tracked,     r.state,        r.times,       r.num_features,
@@ -298,6 +299,19 @@ void write_per_frame(std::ostream& js, const std::vector<FrameRecord>& results) 
   for (const auto& [name, get] : columns) {
     js << ",\n    \"" << name << "\": [";
     for (std::size_t i = 0; i < results.size(); ++i) js << (i > 0 ? ", " : "") << get(results[i]);
+    js << "]";
+  }
+  const std::vector<std::pair<const char*, double (*)(const R&)>> times{
+      {"interval_ms", [](const R& r) { return r.interval_ms; }},
+      {"extract_ms", [](const R& r) { return r.times.extract_ms; }},
+      {"detect_ms", [](const R& r) { return r.times.detect_ms; }},
+      {"track_ms", [](const R& r) { return r.times.track_ms; }},
+      {"track_cpu_ms", [](const R& r) { return r.times.track_cpu_ms; }}};
+  for (const auto& [name, get] : times) {
+    js << ",\n    \"" << name << "\": [";
+    for (std::size_t i = 0; i < results.size(); ++i) {
+      js << (i > 0 ? ", " : "") << ds3d::detail::json_number(get(results[i]));
+    }
     js << "]";
   }
   js << "\n  }\n";
@@ -495,6 +509,7 @@ int run(const Args& a) {
     }
     ++done;
     results.push_back(FrameRecord::of(r));
+    results.back().interval_ms = frame_ms.back();
     if (!a.viz.empty() || dynamic_out) {
       const auto rec = masker ? masker->take(r.index) : ds3d_slam_tool::DynamicRecord{};
       if (!a.viz.empty()) draw_viz(a.viz, ds, r, rec.boxes);

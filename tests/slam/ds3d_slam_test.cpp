@@ -252,6 +252,15 @@ TEST_F(Ds3dSlamCli, WarnsAboutDuplicateStampsGapsAndUnmatchedDetections) {
     EXPECT_GE(stats.at(group).at("detect").at("median_ms").as_number(), 0.0) << group;
     EXPECT_GE(stats.at(group).at("prepare").at("median_ms").as_number(), 0.0) << group;
   }
+  // Per-frame times: one finite, non-negative entry per frame.
+  const auto& per_frame = stats.at("per_frame");
+  for (const char* key : {"interval_ms", "extract_ms", "detect_ms", "track_ms", "track_cpu_ms"}) {
+    const auto& a = per_frame.at(key).as_array();
+    ASSERT_EQ(a.size(), per_frame.at("state").as_array().size()) << key;
+    for (const auto& v : a) {
+      EXPECT_TRUE(std::isfinite(v.as_number()) && v.as_number() >= 0.0) << key;
+    }
+  }
   // A detections file that matches no frame at all is an error naming it.
   std::ofstream(work_ / "other.jsonl") << "{\"timestamp\": 5.0, \"detections\": []}\n";
   r = ds3d::test::run_tool("ds3d-slam",
