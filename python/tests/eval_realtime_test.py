@@ -1,0 +1,65 @@
+# SPDX-License-Identifier: Apache-2.0
+# SPDX-FileCopyrightText: 2026 ds3d authors
+"""scripts/eval-realtime.py on a tiny synthetic sequence: one row per mode with the medians of
+its runs, byte-identical runs reported as such, --check failing on a missed target and naming
+it, bad arguments refused, absent data skipped."""
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+BUILD = pathlib.Path(os.environ.get("DS3D_BUILD_DIR", ROOT / "build"))
+SCRIPT = ROOT / "scripts" / "eval-realtime.py"
+if not all((BUILD / "bin" / t).is_file() for t in ("ds3d-slam", "ds3d-eval", "ds3d-synth")):
+    pytest.skip(f"ds3d-slam / ds3d-eval / ds3d-synth not built in {BUILD}", allow_module_level=True)
+
+
+def _script(*args):
+    return subprocess.run([sys.executable, str(SCRIPT), "--build", str(BUILD), *args],
+                          capture_output=True, text=True)
+
+
+@pytest.fixture(scope="module")
+def seq(tmp_path_factory):
+    d = tmp_path_factory.mktemp("rt") / "wx"
+    subprocess.run([str(BUILD / "bin" / "ds3d-synth"), str(d), "--scenario", "walking_xyz",
+                    "--frames", "10", "--seed", "1"], check=True, capture_output=True)
+    return d
+
+
+def test_rows_medians_and_identical_runs(seq, tmp_path):
+    done = _script("--sequences", str(seq), "--modes", "none", "geometric", "--reps", "2",
+                   "--out", str(tmp_path))
+    assert done.returncode == 0, done.stderr
+    rows = json.loads((tmp_path / "results.json").read_text())
+    assert [r["mode"] for r in rows] == ["none", "geometric"]
+    for r in rows:
+        assert r["runs"] == 2 and r["identical"] and r["tracked"] == "10/10"
+        assert r["fps_range"][0] <= r["fps_median"] <= r["fps_range"][1]
+        assert r["p95_range"][0] <= r["p95_ms"] <= r["p95_range"][1]
+        assert r["ate_rmse"] is not None and r["ate_rmse"] >= 0
+        assert r["stages_wall_ms"]["track"] > 0
+    assert "| wx | `geometric` |" in done.stdout
+
+
+def test_check_names_the_missed_target(seq, tmp_path):
+    done = _script("--sequences", str(seq), "--modes", "none", "--reps", "1", "--out",
+                   str(tmp_path), "--check", "--min-fps", "1e9")
+    assert done.returncode == 1
+    assert "target missed: wx `none`: fps median" in done.stdout
+    relaxed = _script("--sequences", str(seq), "--modes", "none", "--reps", "1", "--out",
+                      str(tmp_path), "--check", "--min-fps", "1e-3", "--max-p95-ms", "1e9")
+    assert relaxed.returncode == 0, relaxed.stdout
+
+
+def test_bad_arguments_and_absent_data(tmp_path):
+    bad = _script("--reps", "0")
+    assert bad.returncode == 2 and "--reps must be >= 1, got 0" in bad.stderr
+    bad = _script("--max-p95-ms", "nan")
+    assert bad.returncode == 2 and "--max-p95-ms must be > 0, got nan" in bad.stderr
+    absent = _script("--sequences", str(tmp_path / "none_here"), "--out", str(tmp_path))
+    assert absent.returncode == 0 and "SKIPPED" in absent.stdout

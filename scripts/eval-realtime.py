@@ -1,0 +1,171 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: Apache-2.0
+# SPDX-FileCopyrightText: 2026 ds3d authors
+"""Real-time benchmark of ds3d-slam: every --dynamic mode on the recorded slices, REPS runs each,
+one at a time and round-robin (so that a busy minute of the host spreads over all modes), with
+detection on every frame. Prints, per mode and sequence, the medians over the runs of fps_median
+and of the p95 frame interval (with their ranges), the stage medians (wall / thread CPU), the
+latency from frame in to pose out, the ATE and whether the runs gave byte-identical
+trajectories. With --check it exits 1 when a mode misses --min-fps or --max-p95-ms.
+
+Run it on an otherwise idle machine: the rates are those of the host (docs/benchmarks.md).
+
+  /usr/bin/python3 scripts/eval-realtime.py [--build build] [--reps 3] [--check]
+  /usr/bin/python3 scripts/eval-realtime.py --modes none geometric --sequences DIR [DIR ...]
+
+Sequences are folder names under $DS3D_DATA_DIR (default ../shared/data next to the
+repository) or paths; without the data it prints SKIPPED and exits 0.
+"""
+import argparse
+import json
+import os
+import pathlib
+import shlex
+import statistics
+import subprocess
+import sys
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+MODES = ["none", "geometric", "htx", "htx --set htx.report_floor=true", "htx+geometric",
+         "htx --gate motion", "htx --gate evidence"]
+SEQUENCES = ["bonn_crowd_first300", "tum_fr1_xyz_first400"]
+STAGES = ["extract", "detect", "prepare", "filter", "track"]
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(prog="eval-realtime", description=__doc__.split("\n\n")[0])
+    p.add_argument("--build", default=str(ROOT / "build"), help="build folder with bin/ds3d-slam")
+    p.add_argument("--data", default=os.environ.get("DS3D_DATA_DIR", str(ROOT.parent / "shared" / "data")))
+    p.add_argument("--sequences", nargs="+", default=SEQUENCES)
+    p.add_argument("--modes", nargs="+", default=MODES, help="each one --dynamic spec plus its flags")
+    p.add_argument("--reps", type=int, default=3, help="runs per mode and sequence, >= 1")
+    p.add_argument("--out", default=None, help="results folder (default BUILD/eval-realtime)")
+    p.add_argument("--check", action="store_true", help="exit 1 when a mode misses the targets")
+    p.add_argument("--min-fps", type=float, default=30.0, help="target fps median, > 0")
+    p.add_argument("--max-p95-ms", type=float, default=50.0, help="target p95 frame interval [ms], > 0")
+    a = p.parse_args(argv)
+    if a.reps < 1:
+        p.error(f"--reps must be >= 1, got {a.reps}")
+    for name in ("min_fps", "max_p95_ms"):
+        if not getattr(a, name) > 0:
+            p.error(f"--{name.replace('_', '-')} must be > 0, got {getattr(a, name)}")
+    return a
+
+
+def sequence_dirs(args):
+    dirs = []
+    for s in args.sequences:
+        d = pathlib.Path(s) if os.sep in s else pathlib.Path(args.data) / s
+        if (d / "rgb.txt").is_file():
+            dirs.append(d)
+        else:
+            print(f"eval-realtime: SKIPPED {s} (no {d / 'rgb.txt'})")
+    return dirs
+
+
+def run_one(slam, seq, mode, stem):
+    cmd = [str(slam), str(seq), "--dynamic", *shlex.split(mode), "--out", f"{stem}.txt",
+           "--stats", f"{stem}.json", "--quiet"]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RuntimeError(f"eval-realtime: '{shlex.join(cmd)}' failed ({done.returncode}):\n"
+                           f"{done.stderr.strip()}")
+    return json.loads(pathlib.Path(f"{stem}.json").read_text())
+
+
+def ate(eval_bin, seq, traj):
+    done = subprocess.run([str(eval_bin), "ate", str(seq / "groundtruth.txt"), traj, "--json"],
+                          capture_output=True, text=True)
+    return json.loads(done.stdout)["rmse"] if done.returncode == 0 else None
+
+
+def median_of(stats, get):
+    values = [v for v in (get(s) for s in stats) if v is not None]
+    return statistics.median(values) if values else None
+
+
+def stage(stats, key, name):
+    return median_of(stats, lambda s: s.get(key, {}).get(name, {}).get("median_ms"))
+
+
+def summarise(seq, mode, stats, stems, eval_bin):
+    fps = [s["fps_median"] for s in stats]
+    p95 = [s["frame_interval"]["p95_ms"] for s in stats]
+    trajs = [pathlib.Path(f"{st}.txt").read_bytes() for st in stems]
+    return {
+        "sequence": seq.name, "mode": mode, "runs": len(stats),
+        "fps_median": statistics.median(fps), "fps_range": [min(fps), max(fps)],
+        "p95_ms": statistics.median(p95), "p95_range": [min(p95), max(p95)],
+        "stages_wall_ms": {n: stage(stats, "stages", n) for n in STAGES},
+        "stages_cpu_ms": {n: stage(stats, "stages_cpu", n) for n in STAGES},
+        "latency_ms": [median_of(stats, lambda s: s["latency"]["median_ms"]),
+                       median_of(stats, lambda s: s["latency"]["p95_ms"])],
+        "tracked": f"{stats[0]['tracked_frames']}/{stats[0]['frames']}",
+        "ate_rmse": ate(eval_bin, seq, f"{stems[0]}.txt"),
+        "identical": all(t == trajs[0] for t in trajs),
+    }
+
+
+def fmt(v, digits=1):
+    return "–" if v is None else f"{v:.{digits}f}"
+
+
+def table(rows):
+    head = ("| sequence | `--dynamic` | fps median (range) | p95 interval [ms] (range) | "
+            + " | ".join(f"{n} wall / CPU [ms]" for n in STAGES)
+            + " | latency median / p95 [ms] | ATE [m] | tracked | identical runs |")
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    for r in rows:
+        st = " | ".join(f"{fmt(r['stages_wall_ms'][n])} / {fmt(r['stages_cpu_ms'][n])}" for n in STAGES)
+        lines.append(
+            f"| {r['sequence']} | `{r['mode']}` | {r['fps_median']:.1f} ({r['fps_range'][0]:.1f}–"
+            f"{r['fps_range'][1]:.1f}) | {r['p95_ms']:.1f} ({r['p95_range'][0]:.1f}–"
+            f"{r['p95_range'][1]:.1f}) | {st} | {fmt(r['latency_ms'][0], 0)} / "
+            f"{fmt(r['latency_ms'][1], 0)} | {fmt(r['ate_rmse'], 4)} | {r['tracked']} | "
+            f"{'yes' if r['identical'] else 'NO'} |")
+    return "\n".join(lines)
+
+
+def misses(rows, args):
+    return [f"{r['sequence']} `{r['mode']}`: fps median {r['fps_median']:.1f} (target >= "
+            f"{args.min_fps:g}), p95 interval {r['p95_ms']:.1f} ms (target <= {args.max_p95_ms:g})"
+            for r in rows if r["fps_median"] < args.min_fps or r["p95_ms"] > args.max_p95_ms]
+
+
+def main(argv=None):
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    build = pathlib.Path(args.build)
+    slam, eval_bin = build / "bin" / "ds3d-slam", build / "bin" / "ds3d-eval"
+    for b in (slam, eval_bin):
+        if not os.access(b, os.X_OK):
+            print(f"eval-realtime: {b} not built (cmake --build {build} --target ds3d-slam ds3d-eval)",
+                  file=sys.stderr)
+            return 2
+    seqs = sequence_dirs(args)
+    if not seqs:
+        return 0
+    out = pathlib.Path(args.out or build / "eval-realtime")
+    out.mkdir(parents=True, exist_ok=True)
+    runs = {}
+    for rep in range(1, args.reps + 1):
+        for seq in seqs:
+            for i, mode in enumerate(args.modes):
+                stem = str(out / f"{seq.name}_{i}_{rep}")
+                runs.setdefault((seq, i), []).append((run_one(slam, seq, mode, stem), stem))
+    rows = [summarise(seq, args.modes[i], [s for s, _ in v], [st for _, st in v], eval_bin)
+            for (seq, i), v in runs.items()]
+    (out / "results.json").write_text(json.dumps(rows, indent=1))
+    print(table(rows))
+    print(f"\nresults: {out / 'results.json'}")
+    missed = misses(rows, args)
+    for m in missed:
+        print(f"eval-realtime: target missed: {m}")
+    return 1 if args.check and missed else 0
+
+
+if __name__ == "__main__":
+    try:
+        sys.exit(main())
+    except RuntimeError as e:  # a run that failed: its command and stderr; earlier runs stay in --out
+        print(e, file=sys.stderr)
+        sys.exit(1)
