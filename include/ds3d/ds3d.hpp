@@ -17,6 +17,7 @@
 #include "ds3d/errors.hpp"
 #include "ds3d/eval/trajectory.hpp"
 #include "ds3d/eval/trajectory_formats.hpp"
+#include "ds3d/eval/trajectory_frames.hpp"
 #include "ds3d/eval/trajectory_metrics.hpp"
 #include "ds3d/preprocess/preprocess.hpp"
 #include "ds3d/preprocess/radius_outlier.hpp"

@@ -22,6 +22,7 @@
 #include "ds3d/errors.hpp"
 #include "ds3d/eval/trajectory.hpp"
 #include "ds3d/eval/trajectory_formats.hpp"
+#include "ds3d/eval/trajectory_frames.hpp"
 #include "ds3d/eval/trajectory_metrics.hpp"
 #include "ds3d/slam/trajectory_plot.hpp"
 #include "ds3d/version.hpp"
@@ -40,7 +41,7 @@ constexpr const char* kUsage =
     "       ds3d-eval rpe GT EST [EST2 ...] [--delta 1] [--delta-unit s|f|m|rad|deg]\n"
     "                 [--offset 0] [--scale 1] [--all-pairs] [--max-pairs 10000] [--evo]\n"
     "                 [--seed 1] [--json] [FORMAT OPTIONS]\n"
-    "       ds3d-eval convert IN OUT [--to tum|kitti|euroc] [FORMAT OPTIONS]\n"
+    "       ds3d-eval convert IN OUT [--to tum|kitti|euroc] [--bonn-camera] [FORMAT OPTIONS]\n"
     "       ds3d-eval --help | --version\n"
     "Several estimates are evaluated one after the other against GT (text: a line 'estimate\n"
     "FILE' before each block; --json: {\"ground_truth\", \"estimates\": [...]}); --plot then\n"
@@ -49,7 +50,9 @@ constexpr const char* kUsage =
     "  --timestamps FILE (one stamp per line, e.g. KITTI's times.txt: the stamps of KITTI\n"
     "  files, else their line index 0, 1, 2, ... in seconds). Without them the format is\n"
     "  detected: .csv is EuRoC, 12 numbers a line KITTI, else TUM. convert writes --to, else\n"
-    "  EuRoC for OUT ending in .csv, else TUM (KITTI output has no timestamps).\n";
+    "  EuRoC for OUT ending in .csv, else TUM (KITTI output has no timestamps).\n"
+    "--bonn-camera (convert): IN is a Bonn RGB-D Dynamic groundtruth.txt (motion-capture marker\n"
+    "  poses); OUT gets the camera poses by the dataset's fixed transforms (docs/eval.md).\n";
 
 int usage(const std::string& msg) {
   std::cerr << "ds3d-eval: " << msg << "\n" << kUsage;
@@ -151,6 +154,7 @@ struct Args {
   std::optional<ds3d::TrajectoryFormat> est_format;  // and convert's IN
   std::optional<ds3d::TrajectoryFormat> to;
   std::string timestamps;
+  bool bonn_camera = false;  // convert: marker poses of the Bonn dataset -> camera poses
 };
 
 /// An option of ate and rpe (false when `a` is none of them).
@@ -207,6 +211,8 @@ bool format_option(Args& r, const std::string& a, const std::function<std::strin
     r.est_format = format_value(a, value());
   } else if (r.cmd == "convert" && a == "--to") {
     r.to = format_value(a, value());
+  } else if (r.cmd == "convert" && a == "--bonn-camera") {
+    r.bonn_camera = true;
   } else if (a == "--timestamps") {
     r.timestamps = value();
   } else {
@@ -358,14 +364,15 @@ int evaluate(const Args& a) {
 /// convert IN OUT: every pose of IN (zero-quaternion and non-finite lines skipped, with a
 /// warning) written to OUT in --to, else the format OUT's extension names.
 int convert(const Args& a) {
-  const auto traj = read_checked(a, a.files[0], a.est_format, false, "a pose needs a rotation");
+  auto traj = read_checked(a, a.files[0], a.est_format, false, "a pose needs a rotation");
+  if (a.bonn_camera) traj = ds3d::bonn_marker_to_camera(std::move(traj));
   const std::filesystem::path out = a.files[1];
   const ds3d::TrajectoryFormat to = a.to.value_or(
       ds3d::detail::lower(out.extension().string()) == ".csv" ? ds3d::TrajectoryFormat::kEuroc
                                                               : ds3d::TrajectoryFormat::kTum);
   ds3d::write_trajectory(out, traj, to);
-  std::printf("%zu poses written to %s (%s)\n", traj.size(), out.string().c_str(),
-              ds3d::to_string(to));
+  std::printf("%zu poses written to %s (%s%s)\n", traj.size(), out.string().c_str(),
+              ds3d::to_string(to), a.bonn_camera ? ", Bonn marker poses -> camera poses" : "");
   return 0;
 }
 

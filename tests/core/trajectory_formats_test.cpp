@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "ds3d/detail/json.hpp"
+#include "ds3d/eval/trajectory_frames.hpp"
 #include "ds3d/eval/trajectory_metrics.hpp"
 #include "support/cli.hpp"
 #include "support/files.hpp"
@@ -266,6 +267,16 @@ TEST(TrajectoryFormats, Ds3dEvalReadsAndConverts) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_EQ(ds3d::read_trajectory(dir / "e.csv").format, TrajectoryFormat::kEuroc);
   expect_same_poses(ds3d::read_trajectory(dir / "e.csv").trajectory, est, 1e-6);
+  // --bonn-camera: the library's marker-to-camera transform; refused by ate.
+  r = ds3d::test::run_tool("ds3d-eval", "convert " + d + "gt.txt' " + d + "cam.txt' --bonn-camera");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.output, "40 poses written to " + (dir / "cam.txt").string() +
+                          " (tum, Bonn marker poses -> camera poses)\n");
+  expect_same_poses(ds3d::read_tum_trajectory(dir / "cam.txt"), ds3d::bonn_marker_to_camera(gt),
+                    1e-9);
+  r = ds3d::test::run_tool("ds3d-eval", "ate " + d + "gt.txt' " + d + "est.csv' --bonn-camera");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("unknown option '--bonn-camera' for ate"), std::string::npos) << r.output;
   fs::remove_all(dir);
 }
 
