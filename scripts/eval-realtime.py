@@ -74,9 +74,15 @@ def run_one(slam, seq, mode, stem):
 
 
 def ate(eval_bin, seq, traj):
-    done = subprocess.run([str(eval_bin), "ate", str(seq / "groundtruth.txt"), traj, "--json"],
-                          capture_output=True, text=True)
-    return json.loads(done.stdout)["rmse"] if done.returncode == 0 else None
+    """The ATE RMSE [m], or None (with the command and its stderr on stderr) when ds3d-eval fails,
+    e.g. for a sequence without groundtruth.txt."""
+    cmd = [str(eval_bin), "ate", str(seq / "groundtruth.txt"), traj, "--json"]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode == 0:
+        return json.loads(done.stdout)["rmse"]
+    print(f"eval-realtime: no ATE for {seq.name}: '{shlex.join(cmd)}' failed ({done.returncode}): "
+          f"{done.stderr.strip()}", file=sys.stderr)
+    return None
 
 
 def median_of(stats, get):

@@ -2,10 +2,11 @@
 # SPDX-FileCopyrightText: 2026 ds3d authors
 """scripts/eval-realtime.py on a tiny synthetic sequence: one row per mode with the medians of
 its runs, byte-identical runs reported as such, --check failing on a missed target and naming
-it, bad arguments refused, absent data skipped."""
+it, a failed ATE said with its command, bad arguments refused, absent data skipped."""
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 
@@ -63,3 +64,16 @@ def test_bad_arguments_and_absent_data(tmp_path):
     assert bad.returncode == 2 and "--max-p95-ms must be > 0, got nan" in bad.stderr
     absent = _script("--sequences", str(tmp_path / "none_here"), "--out", str(tmp_path))
     assert absent.returncode == 0 and "SKIPPED" in absent.stdout
+
+
+def test_a_failed_ate_is_said_with_its_command(seq, tmp_path):
+    bare = tmp_path / "bare"
+    shutil.copytree(seq, bare)
+    (bare / "groundtruth.txt").unlink()
+    done = _script("--sequences", str(bare), "--modes", "none", "--reps", "1", "--out",
+                   str(tmp_path / "out"))
+    assert done.returncode == 0, done.stderr
+    assert "eval-realtime: no ATE for bare: '" in done.stderr and "groundtruth.txt" in done.stderr
+    rows = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert rows[0]["ate_rmse"] is None and rows[0]["tracked"] == "10/10"
+    assert "| bare | `none` |" in done.stdout
