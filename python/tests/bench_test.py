@@ -20,7 +20,7 @@ if not all((BIN / t).is_file() for t in ("ds3d-slam", "ds3d-eval", "ds3d-synth")
     pytest.skip(f"ds3d-slam / ds3d-eval / ds3d-synth not built in {BIN}", allow_module_level=True)
 
 # Columns that depend on the clock or on the results folder, not on the computation.
-NOT_COMPARED = {"fps_median", "wall_s", "dir", "log", "cmd"}
+NOT_COMPARED = {"fps_median", "p95_interval_ms", "wall_s", "dir", "log", "cmd"}
 
 
 def _suite(path, configs):
@@ -54,6 +54,7 @@ def test_local_run_writes_table_plots_and_cells(local):
     for r in rows:
         assert 0 < r["ate_rmse"] < 0.1 and 0 < r["worst_window_rmse"] < 0.1 and r["rpe_trans_rmse"] > 0
         assert r["tracked_frames"] == r["frames"] == 8 and r["fps_median"] > 0
+        assert r["p95_interval_ms"] > 0
         cell = pathlib.Path(r["dir"])
         for f in ("trajectory.txt", "stats.json", "ate.json", "rpe.json", "trajectory.png", "cmd.txt",
                   "result.json"):

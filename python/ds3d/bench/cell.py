@@ -16,7 +16,8 @@ FAILED = "failed.json"   # a cell that did not finish (run again next time)
 SEQ_MARKER = ".ds3d-bench-seq.json"
 
 ROW_KEYS = ["sequence", "config", "seed", "status", "ate_rmse", "rpe_trans_rmse", "rpe_rot_rmse_deg",
-            "worst_window_rmse", "tracked_frames", "frames", "fps_median", "dynamic_fraction", "log",
+            "worst_window_rmse", "tracked_frames", "frames", "fps_median", "p95_interval_ms",
+            "dynamic_fraction", "log",
             "dir"]
 
 
@@ -150,6 +151,7 @@ def _metrics(row, ate, rpe, stats):
     row["tracked_frames"] = stats.get("tracked_frames")
     row["frames"] = stats.get("frames")
     row["fps_median"] = stats.get("fps_median")
+    row["p95_interval_ms"] = (stats.get("frame_interval") or {}).get("p95_ms")
     if "dynamic_fraction" in stats:
         row["dynamic_fraction"] = stats["dynamic_fraction"]
     elif stats.get("keypoints"):

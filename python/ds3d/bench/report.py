@@ -11,13 +11,14 @@ from .cell import ROW_KEYS
 MD_COLUMNS = [("sequence", "sequence"), ("seed", "seed"), ("config", "config"), ("status", "status"),
               ("ate_rmse", "ATE RMSE [m]"), ("rpe_trans_rmse", "RPE [m]"), ("rpe_rot_rmse_deg", "RPE [deg]"),
               ("worst_window_rmse", "worst window [m]"), ("tracked", "tracked / frames"),
-              ("fps_median", "fps median"), ("dynamic_fraction", "dynamic fraction")]
+              ("fps_median", "fps median"), ("p95_interval_ms", "p95 interval [ms]"),
+              ("dynamic_fraction", "dynamic fraction")]
 
 
 def _fmt(key, v):
     if v is None or v == "":
         return ""
-    if key == "fps_median":
+    if key in ("fps_median", "p95_interval_ms"):
         return f"{v:.1f}"
     if key == "dynamic_fraction":
         return f"{v:.3f}"
