@@ -55,6 +55,7 @@ def test_local_run_writes_table_plots_and_cells(local):
         assert 0 < r["ate_rmse"] < 0.1 and 0 < r["worst_window_rmse"] < 0.1 and r["rpe_trans_rmse"] > 0
         assert r["tracked_frames"] == r["frames"] == 8 and r["fps_median"] > 0
         assert r["p95_interval_ms"] > 0
+        assert (r["dynamic_fraction"] == 0) == (r["config"] == "none") and r["dynamic_fraction"] < 1
         cell = pathlib.Path(r["dir"])
         for f in ("trajectory.txt", "stats.json", "ate.json", "rpe.json", "trajectory.png", "cmd.txt",
                   "result.json"):

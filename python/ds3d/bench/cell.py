@@ -152,10 +152,7 @@ def _metrics(row, ate, rpe, stats):
     row["frames"] = stats.get("frames")
     row["fps_median"] = stats.get("fps_median")
     row["p95_interval_ms"] = (stats.get("frame_interval") or {}).get("p95_ms")
-    if "dynamic_fraction" in stats:
-        row["dynamic_fraction"] = stats["dynamic_fraction"]
-    elif stats.get("keypoints"):
-        row["dynamic_fraction"] = stats.get("dynamic_keypoints", 0) / stats["keypoints"]
+    row["dynamic_fraction"] = (stats.get("totals") or {}).get("dynamic_fraction")
 
 
 def _run(cmd, stdout_path, log, mode="a"):
