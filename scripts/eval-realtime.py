@@ -13,6 +13,10 @@ Run it on an otherwise idle machine: the rates are those of the host (docs/bench
   /usr/bin/python3 scripts/eval-realtime.py [--build build] [--reps 3] [--check]
   /usr/bin/python3 scripts/eval-realtime.py --modes none geometric --sequences DIR [DIR ...]
 
+The modes are the configurations of a ds3d.bench suite file (default bench/suites/recorded.yaml,
+the README's table), or --modes: each one --dynamic spec plus its flags. ds3d is imported from
+BUILD/python.
+
 Sequences are folder names under $DS3D_DATA_DIR (default ../shared/data next to the
 repository) or paths; without the data it prints SKIPPED and exits 0.
 """
@@ -26,8 +30,7 @@ import subprocess
 import sys
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-MODES = ["none", "geometric", "htx", "htx --set htx.report_floor=true", "htx+geometric",
-         "htx --gate motion", "htx --gate evidence"]
+SUITE = ROOT / "bench" / "suites" / "recorded.yaml"
 SEQUENCES = ["bonn_crowd_first300", "tum_fr1_xyz_first400"]
 STAGES = ["extract", "detect", "prepare", "filter", "track"]
 
@@ -37,7 +40,9 @@ def parse_args(argv):
     p.add_argument("--build", default=str(ROOT / "build"), help="build folder with bin/ds3d-slam")
     p.add_argument("--data", default=os.environ.get("DS3D_DATA_DIR", str(ROOT.parent / "shared" / "data")))
     p.add_argument("--sequences", nargs="+", default=SEQUENCES)
-    p.add_argument("--modes", nargs="+", default=MODES, help="each one --dynamic spec plus its flags")
+    p.add_argument("--suite", default=str(SUITE), help="ds3d.bench suite whose configs are the modes")
+    p.add_argument("--modes", nargs="+", default=None,
+                   help="instead of the suite's configs: each one --dynamic spec plus its flags")
     p.add_argument("--reps", type=int, default=3, help="runs per mode and sequence, >= 1")
     p.add_argument("--out", default=None, help="results folder (default BUILD/eval-realtime)")
     p.add_argument("--check", action="store_true", help="exit 1 when a mode misses the targets")
@@ -63,9 +68,21 @@ def sequence_dirs(args):
     return dirs
 
 
-def run_one(slam, seq, mode, stem):
-    cmd = [str(slam), str(seq), "--dynamic", *shlex.split(mode), "--out", f"{stem}.txt",
-           "--stats", f"{stem}.json", "--quiet"]
+def suite_modes(build, suite):
+    """(name, ds3d-slam flags) of every configuration of a ds3d.bench suite file."""
+    sys.path.insert(0, str(build / "python"))
+    from ds3d.bench.cli import slam_args
+    from ds3d.bench.suite import load_suite
+    try:
+        configs = load_suite(suite)["configs"]
+    except (OSError, ValueError) as e:  # SuiteError is a ValueError
+        print(f"eval-realtime: --suite {suite}: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
+    return [(c["name"], slam_args({}, c, "")) for c in configs]
+
+
+def run_one(slam, seq, flags, stem):
+    cmd = [str(slam), str(seq), *flags, "--out", f"{stem}.txt", "--stats", f"{stem}.json", "--quiet"]
     done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0:
         raise RuntimeError(f"eval-realtime: '{shlex.join(cmd)}' failed ({done.returncode}):\n"
@@ -150,15 +167,17 @@ def main(argv=None):
     seqs = sequence_dirs(args)
     if not seqs:
         return 0
+    modes = ([(m, ["--dynamic", *shlex.split(m)]) for m in args.modes] if args.modes
+             else suite_modes(build, args.suite))
     out = pathlib.Path(args.out or build / "eval-realtime")
     out.mkdir(parents=True, exist_ok=True)
     runs = {}
     for rep in range(1, args.reps + 1):
         for seq in seqs:
-            for i, mode in enumerate(args.modes):
+            for i, (_, flags) in enumerate(modes):
                 stem = str(out / f"{seq.name}_{i}_{rep}")
-                runs.setdefault((seq, i), []).append((run_one(slam, seq, mode, stem), stem))
-    rows = [summarise(seq, args.modes[i], [s for s, _ in v], [st for _, st in v], eval_bin)
+                runs.setdefault((seq, i), []).append((run_one(slam, seq, flags, stem), stem))
+    rows = [summarise(seq, modes[i][0], [s for s, _ in v], [st for _, st in v], eval_bin)
             for (seq, i), v in runs.items()]
     (out / "results.json").write_text(json.dumps(rows, indent=1))
     print(table(rows))

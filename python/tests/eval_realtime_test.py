@@ -2,7 +2,8 @@
 # SPDX-FileCopyrightText: 2026 ds3d authors
 """scripts/eval-realtime.py on a tiny synthetic sequence: one row per mode with the medians of
 its runs, byte-identical runs reported as such, --check failing on a missed target and naming
-it, a failed ATE said with its command, bad arguments refused, absent data skipped."""
+it, a failed ATE said with its command, modes from a suite file, bad arguments refused, absent
+data skipped."""
 import json
 import os
 import pathlib
@@ -62,6 +63,10 @@ def test_bad_arguments_and_absent_data(tmp_path):
     assert bad.returncode == 2 and "--reps must be >= 1, got 0" in bad.stderr
     bad = _script("--max-p95-ms", "nan")
     assert bad.returncode == 2 and "--max-p95-ms must be > 0, got nan" in bad.stderr
+    (tmp_path / "wx").mkdir()
+    (tmp_path / "wx" / "rgb.txt").write_text("")
+    bad = _script("--sequences", str(tmp_path / "wx"), "--suite", str(tmp_path / "no.yaml"))
+    assert bad.returncode == 2 and f"--suite {tmp_path / 'no.yaml'}: " in bad.stderr
     absent = _script("--sequences", str(tmp_path / "none_here"), "--out", str(tmp_path))
     assert absent.returncode == 0 and "SKIPPED" in absent.stdout
 
@@ -77,3 +82,15 @@ def test_a_failed_ate_is_said_with_its_command(seq, tmp_path):
     rows = json.loads((tmp_path / "out" / "results.json").read_text())
     assert rows[0]["ate_rmse"] is None and rows[0]["tracked"] == "10/10"
     assert "| bare | `none` |" in done.stdout
+
+
+def test_modes_come_from_a_suite_file(seq, tmp_path):
+    suite = tmp_path / "modes.json"
+    suite.write_text(json.dumps({"name": "modes", "sequences": [str(seq)],
+                                 "configs": ["none", {"dynamic": "geometric", "gate": "motion"}]}))
+    done = _script("--sequences", str(seq), "--suite", str(suite), "--reps", "1", "--out",
+                   str(tmp_path / "out"))
+    assert done.returncode == 0, done.stderr
+    rows = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert [r["mode"] for r in rows] == ["none", "geometric --gate motion"]
+    assert "| wx | `geometric --gate motion` |" in done.stdout
