@@ -140,7 +140,7 @@ inline TumReadResult parse_kitti_trajectory(std::string_view text,
     }
     Eigen::Matrix3d r;
     r << v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10];
-    const double off = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+    const double off = detail::orthonormality_error(r);
     DS3D_CHECK_AS(IoError, off <= 1e-3 && r.determinant() > 0, kFn, source, " line ", line.number,
                   ": the 3x3 part is not a rotation (max |R^T R - I| = ", off, ", det ",
                   r.determinant(), ")");

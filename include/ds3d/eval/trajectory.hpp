@@ -58,6 +58,11 @@ struct TumReadResult {
 
 namespace detail {
 
+/// max |RᵀR − I|: how far a 3×3 matrix is from orthonormal (0 for a rotation or reflection).
+[[nodiscard]] inline double orthonormality_error(const Eigen::Matrix3d& r) {
+  return (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+}
+
 /// Rotation matrix exactly as evaluate_rpe.py's transform44(): q scaled by sqrt(2/|q|^2), then
 /// the outer product; identity when |q|^2 < 4*eps. q = (qx, qy, qz, qw), not necessarily unit.
 [[nodiscard]] inline Eigen::Matrix3d tum_quaternion_to_matrix(double qx, double qy, double qz,

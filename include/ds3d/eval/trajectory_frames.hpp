@@ -27,7 +27,7 @@ inline void check_rigid(const Eigen::Isometry3d& T, const char* fn, const char* 
   const Eigen::Matrix4d& m = T.matrix();
   DS3D_CHECK(m.allFinite(), fn, ": ", param, " must be finite");
   const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();
-  const double off = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const double off = orthonormality_error(R);
   DS3D_CHECK(off <= 1e-6 && R.determinant() > 0.0, fn, ": ", param,
              " must be a rigid transform (rotation block off orthonormal by ", off,
              ", determinant ", R.determinant(), ")");
