@@ -17,8 +17,7 @@ SEQ_MARKER = ".ds3d-bench-seq.json"
 
 ROW_KEYS = ["sequence", "config", "seed", "status", "ate_rmse", "rpe_trans_rmse", "rpe_rot_rmse_deg",
             "worst_window_rmse", "tracked_frames", "frames", "fps_median", "p95_interval_ms",
-            "dynamic_fraction", "log",
-            "dir"]
+            "dynamic_fraction", "log", "dir"]
 
 
 def tool(path):
