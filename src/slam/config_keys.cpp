@@ -399,8 +399,8 @@ std::vector<ConfigKey> make_config_keys() {
   std::vector<ConfigKey> keys{
       key(
           "dynamic.source", [](auto& c) -> auto& { return c.dynamic; },
-          "moving-object source: none, geometric, htx, file:PATH, mask:DIR or A+B (A, then B on "
-          "what A left)"),
+          "moving-object source: none, geometric, htx, file:PATH, mask:DIR or A+B (both on the "
+          "whole frame, objects united)"),
       key(
           "dynamic.gate", [](auto& c) -> auto& { return c.gate; },
           "gate the source's boxes by the geometric source: none, motion or evidence"),

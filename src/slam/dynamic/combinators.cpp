@@ -114,23 +114,10 @@ DynamicObjects CompositeSource::detect_prepared(const FrameInput& frame,
                                                 const PinholeCamera& camera,
                                                 const PreparedDetection* prepared) {
   DynamicObjects out = first_->detect_prepared(frame, camera, first_of(prepared));
-  FrameInput rest = frame;
-  const std::vector<ImageBox> boxes = image_boxes(out, camera);
-  const cv::Mat& m = out.pixel_mask;
-  const bool has_mask = camera_image(m, CV_8UC1, camera);
-  if (!frame.depth.empty() && (!boxes.empty() || has_mask)) {
-    rest.depth = frame.depth.clone();  // the caller's image is shared: never write into it
-    const cv::Rect image(0, 0, rest.depth.cols, rest.depth.rows);
-    for (const ImageBox& b : boxes) {
-      const cv::Rect r(
-          cv::Point(static_cast<int>(std::floor(b.x_min)), static_cast<int>(std::floor(b.y_min))),
-          cv::Point(static_cast<int>(std::ceil(b.x_max)) + 1,
-                    static_cast<int>(std::ceil(b.y_max)) + 1));
-      rest.depth(r & image).setTo(0);
-    }
-    if (has_mask && m.size() == rest.depth.size()) rest.depth.setTo(0, m);
-  }
-  DynamicObjects more = second_->detect(rest, camera);
+  // The second source sees the whole frame: a motion source needs the static background inside
+  // the first one's boxes for its own ego-motion, and must see what the first one missed or
+  // boxed too small (docs/dynamic.md, "Combining sources").
+  DynamicObjects more = second_->detect(frame, camera);
   if (out.scores.empty() && !more.scores.empty()) out.scores.assign(out.boxes_2d.size(), 1.0F);
   if (!out.scores.empty() && more.scores.empty()) more.scores.assign(more.boxes_2d.size(), 1.0F);
   out.boxes_2d.insert(out.boxes_2d.end(), more.boxes_2d.begin(), more.boxes_2d.end());

@@ -22,11 +22,12 @@
 
 namespace ds3d::slam {
 
-/// Two sources in sequence, 3DS-SLAM's semantic-then-geometric order: `first` runs on the frame;
-/// `second` runs on the frame with the depth blanked (0 = no depth) inside the image boxes of
-/// `first`'s objects, so it only sees, and estimates its own motion from, what `first` left as
-/// static; the result is the union of both sources' objects (2-D boxes, 3-D boxes, and the
-/// pixel masks OR-ed). The masker downstream then filters the keypoints of both sets of boxes.
+/// Two sources in sequence, 3DS-SLAM's semantic-then-geometric order: `first`, then `second`,
+/// each on the whole frame; the result is the union of both sources' objects (2-D boxes, 3-D
+/// boxes, and the pixel masks OR-ed). The masker downstream then filters the keypoints of both
+/// sets of boxes. `second` is not shown a frame with `first`'s objects removed: a motion source
+/// needs the whole static background for its own ego-motion and must see the moving objects
+/// `first` missed (a person cut by the image edge, a carried board).
 /// @note Deterministic when both sources are. Not thread-safe (the sources keep state).
 class CompositeSource final : public DynamicObjectSource {
  public:

@@ -48,7 +48,7 @@ struct DynamicSourceOptions {
 /// options.file; the rest of the string is the path), "mask:DIR" (MaskSource with
 /// options.file.max_dt: per-frame mask images), "geometric" (GeometricMotionSource with
 /// options.geometric), "htx" (HtxSource, weights and parameters from `options`), or "A+B" with A
-/// and B any of these but none (CompositeSource: A, then B on what A left), e.g.
+/// and B any of these but none (CompositeSource: A, then B, each on the whole frame), e.g.
 /// "htx+geometric". Gating by the geometric source (MotionGatedSource) is a separate setting:
 /// make_dynamic_source(const SlamConfig&) in config.hpp, `ds3d-slam --gate motion|evidence`.
 /// @throws ds3d::InvalidArgument for an unknown name or bad options; ds3d::IoError for an
