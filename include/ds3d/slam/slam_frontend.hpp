@@ -94,11 +94,10 @@ struct FrontendConfig {
   /// matches that agree with it (4 × the χ² thresholds) start the pose-only optimisation, then
   /// the local map. That pose replaces the first one when it is within the same bounds and has
   /// min_tracked_inliers inliers; otherwise the first pose stays. The gate needs a velocity from
-  /// two frames tracked in a row (not relocalised or re-anchored). Off by default: on the crowd
-  /// suite it removes the worst drag (crowd_cross seed 1) but is not better everywhere
-  /// (docs/slam.md, "Motion gate").
-  double max_acceleration = 0;
-  double max_angular_acceleration = 0;  ///< see max_acceleration
+  /// two frames tracked in a row (not relocalised or re-anchored). The defaults, 60 m/s² and
+  /// 60 rad/s², are far beyond a hand-held or robot-mounted camera (docs/slam.md, "Motion gate").
+  double max_acceleration = 60;
+  double max_angular_acceleration = 60;  ///< see max_acceleration
   /// Keypoints on an occluding contour at a dynamic region are removed from tracking and
   /// mapping (0 = off), >= 0: those with a depth sample (at 4 and 8 px × their level's scale,
   /// 16 directions, and their own pixel) in a source box's image rectangle or on its pixel mask
