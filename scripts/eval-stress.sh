@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # SPDX-License-Identifier: Apache-2.0
 # SPDX-FileCopyrightText: 2026 ds3d authors
-# Crowd stress suite (docs/eval.md): every crowd_* scenario of ds3d-synth x seeds 1 and 2, plus
+# Crowd stress suite (docs/eval.md): every crowd_* scenario of ds3d-synth x seeds 1 to 4, plus
 # frames 230-299 of the recorded bonn_crowd_first300, through ds3d-slam in every dynamic mode;
 # prints one Markdown table (ATE RMSE, worst 3-s window, tracked frames, fps median) and writes it
 # with a CSV to --out. Exit 0 when every run completed (figures are not judged), 1 when a run
@@ -78,7 +78,7 @@ for b in "$slam" "$evalb" "$synth"; do
   [[ -x "$b" ]] || { echo "eval-stress: $b not built (cmake --build build --target ds3d-slam ds3d-eval ds3d-synth)" >&2; exit 2; }
 done
 frames=120
-seeds="1 2"
+seeds="1 2 3 4"
 if [[ $quick == 1 ]]; then frames=60; seeds="1"; fi
 scenarios="crowd_cross crowd_board crowd_start crowd_handheld"
 modes_real=("none" "geometric" "htx" "htx+geometric" "htx --gate motion" "htx --gate evidence")
