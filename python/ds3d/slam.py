@@ -53,7 +53,8 @@ def make_dynamic_source(spec="none", config=None, gate=None, weights=None, **htx
 
     Args:
         spec: ``"none"``, ``"geometric"``, ``"htx"``, ``"file:PATH"`` or ``"A+B"`` (A, then B,
-            each on the whole frame, objects united, e.g. ``"htx+geometric"``); key ``dynamic.source``.
+            each on the whole frame, objects united, e.g. ``"htx+geometric"``); key
+            ``dynamic.source``.
         config: a ``ds3d.SlamConfig`` or a dict of keys for every other parameter.
         gate: ``"none"``, ``"motion"`` or ``"evidence"`` (key ``dynamic.gate``).
         weights: the HTx weights file (key ``dynamic.weights``; None: the shipped model).
