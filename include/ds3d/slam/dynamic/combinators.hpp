@@ -35,7 +35,7 @@ class CompositeSource final : public DynamicObjectSource {
   CompositeSource(std::shared_ptr<DynamicObjectSource> first,
                   std::shared_ptr<DynamicObjectSource> second);
   DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
-  /// `first`'s prepare() (the second source needs first's objects); nullptr when it has none.
+  /// `first`'s prepare(); nullptr when it has none. `second` runs whole in detect_prepared().
   [[nodiscard]] std::shared_ptr<const PreparedDetection> prepare(
       const FrameInput& frame, const PinholeCamera& camera) const override;
   DynamicObjects detect_prepared(const FrameInput& frame, const PinholeCamera& camera,
