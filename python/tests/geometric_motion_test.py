@@ -103,7 +103,8 @@ def test_params_stats_and_errors():
     for field, value in (("num_features", 0), ("reference_gap", 0), ("match_ratio", 1.5),
                          ("min_pose_inliers", 3), ("image_scale", 0.0), ("min_support", 0.0),
                          ("moving_chi2", float("nan")), ("max_speed", -1.0),
-                         ("min_band_support", -0.1), ("max_object_width", 0.0)):
+                         ("min_band_support", -0.1), ("max_object_width", 0.0),
+                         ("max_acceleration", -1.0)):
         q = ds3d.GeometricMotionParams()
         setattr(q, field, value)
         with pytest.raises(ValueError, match=field):

@@ -263,6 +263,12 @@ std::vector<ConfigKey> geometric_keys() {
           [](auto& c) -> auto& { return c.geometric.min_pose_inliers; },
           "trusted pose: at least this many inliers, >= 6"),
       key(
+          "geometric.max_acceleration",
+          [](auto& c) -> auto& { return c.geometric.max_acceleration; },
+          "[m/s^2] motion prior of the source's own pose: a pose farther than this * dt^2 from "
+          "the constant-velocity prediction may be replaced by one the prediction explains, >= 0 "
+          "(0 = off)"),
+      key(
           "geometric.warp_gap", [](auto& c) -> auto& { return c.geometric.warp_gap; },
           "[frames] between the current frame and the reference of the dense depth warp, >= 1"),
       key(

@@ -36,6 +36,9 @@ using ds3d::slam::GeometricMotionStats;
   X(depth_window, "half-size of the depth-spread window at keypoints [px], >= 0")                 \
   X(min_inlier_ratio, "trusted pose: inliers / matches at least this, in [0, 1]")                 \
   X(min_pose_inliers, "trusted pose: at least this many inliers, >= 6")                           \
+  X(max_acceleration,                                                                             \
+    "motion prior of the source's own pose [m/s^2], >= 0 (0 = off): a pose farther than this * "  \
+    "dt^2 from the constant-velocity prediction may be replaced by one the prediction explains")  \
   X(warp_gap, "frames between the current frame and the reference of the dense warp, >= 1")       \
   X(warp_stride, "grid step of the dense depth warp [px], >= 1")                                  \
   X(warp_window, "half-size of the depth-edge / min-depth window of the warp [px], >= 0")         \
@@ -64,6 +67,7 @@ using ds3d::slam::GeometricMotionStats;
   X(pose_ok, "a reference was available and the pose is trusted")                  \
   X(num_matches, "descriptor matches with the reference (reference depth)")        \
   X(num_pose_inliers, "PnP-RANSAC inliers")                                        \
+  X(prior_replaced, "the motion prior replaced the largest-consensus pose")         \
   X(num_tested, "keypoints with depth in both views that were chi2-tested")        \
   X(num_moving_keypoints, "tested keypoints above moving_chi2")                    \
   X(num_warp_tested, "grid pixels tested by the dense depth warp")                 \

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <utility>
 
 #include <Eigen/Cholesky>
@@ -46,6 +47,8 @@ void GeometricMotionParams::validate() const {
              ": min_inlier_ratio must be in [0, 1] (got ", min_inlier_ratio, ")");
   DS3D_CHECK(min_pose_inliers >= 6, f, ": min_pose_inliers must be >= 6 (got ", min_pose_inliers,
              ")");
+  DS3D_CHECK(std::isfinite(max_acceleration) && max_acceleration >= 0, f,
+             ": max_acceleration must be finite and >= 0 (got ", max_acceleration, ")");
   DS3D_CHECK(warp_stride >= 1, f, ": warp_stride must be >= 1 (got ", warp_stride, ")");
   DS3D_CHECK(warp_gap >= 1, f, ": warp_gap must be >= 1 (got ", warp_gap, ")");
   DS3D_CHECK(warp_window >= 0, f, ": warp_window must be >= 0 (got ", warp_window, ")");
@@ -368,35 +371,114 @@ void GeometricMotionSource::match_and_pose(Work& work) {
   //    inlier threshold is in pixels of the reduced image.
   if (static_cast<int>(obj.size()) >= params_.min_pose_inliers) {
     const cv::Matx33d K(cs.fx, 0, cs.cx, 0, cs.fy, cs.cy, 0, 0, 1);
-    cv::Mat rvec;
-    cv::Mat tvec;
-    std::vector<int> inliers;
-    const bool ok = cv::solvePnPRansac(
-        obj, img, K, cv::noArray(), rvec, tvec, false, params_.ransac_iterations,
-        static_cast<float>(std::sqrt(params_.chi2_2dof) * 1.5), 0.99, inliers, cv::SOLVEPNP_EPNP);
-    const double ratio = static_cast<double>(inliers.size()) /
+    PoseHypothesis best = robust_pose(obj, img, K);
+    stats_.num_pose_inliers = static_cast<int>(best.inliers.size());
+    const double ratio = static_cast<double>(best.inliers.size()) /
                          static_cast<double>(std::max<std::size_t>(obj.size(), 1));
-    stats_.num_pose_inliers = static_cast<int>(inliers.size());
-    if (ok && static_cast<int>(inliers.size()) >= params_.min_pose_inliers &&
+    if (best.ok && static_cast<int>(best.inliers.size()) >= params_.min_pose_inliers &&
         ratio >= params_.min_inlier_ratio) {
-      std::vector<cv::Point3f> oi;
-      std::vector<cv::Point2f> ii;
-      for (const int i : inliers) {
-        oi.push_back(obj[static_cast<std::size_t>(i)]);
-        ii.push_back(img[static_cast<std::size_t>(i)]);
-      }
-      cv::solvePnP(oi, ii, K, cv::noArray(), rvec, tvec, true, cv::SOLVEPNP_ITERATIVE);
-      cv::Mat R;
-      cv::Rodrigues(rvec, R);
-      Eigen::Matrix3d Re;
-      for (int a = 0; a < 3; ++a) {
-        for (int b = 0; b < 3; ++b) Re(a, b) = R.at<double>(a, b);
-      }
-      T_cur_ref.linear() = Re;
-      T_cur_ref.translation() =
-          Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+      refine_pose(obj, img, K, best);
+      apply_motion_prior(work, obj, img, K, best);
+      T_cur_ref = best.T_cur_ref;
       stats_.pose_ok = T_cur_ref.matrix().allFinite();
     }
+  }
+  last_motion_valid_ = stats_.pose_ok;
+  if (stats_.pose_ok) {
+    last_motion_ = T_cur_ref;
+    last_motion_dt_ = cur.timestamp - ref->timestamp;
+  }
+}
+
+GeometricMotionSource::PoseHypothesis GeometricMotionSource::robust_pose(
+    const std::vector<cv::Point3f>& obj, const std::vector<cv::Point2f>& img,
+    const cv::Matx33d& K) const {
+  PoseHypothesis h;
+  h.ok = cv::solvePnPRansac(obj, img, K, cv::noArray(), h.rvec, h.tvec, false,
+                            params_.ransac_iterations, static_cast<float>(inlier_threshold()), 0.99,
+                            h.inliers,
+                            cv::SOLVEPNP_EPNP);
+  return h;
+}
+
+void GeometricMotionSource::refine_pose(const std::vector<cv::Point3f>& obj,
+                                        const std::vector<cv::Point2f>& img, const cv::Matx33d& K,
+                                        PoseHypothesis& h) {
+  std::vector<cv::Point3f> oi;
+  std::vector<cv::Point2f> ii;
+  for (const int i : h.inliers) {
+    oi.push_back(obj[static_cast<std::size_t>(i)]);
+    ii.push_back(img[static_cast<std::size_t>(i)]);
+  }
+  cv::solvePnP(oi, ii, K, cv::noArray(), h.rvec, h.tvec, true, cv::SOLVEPNP_ITERATIVE);
+  cv::Mat R;
+  cv::Rodrigues(h.rvec, R);
+  Eigen::Matrix3d Re;
+  for (int a = 0; a < 3; ++a) {
+    for (int b = 0; b < 3; ++b) Re(a, b) = R.at<double>(a, b);
+  }
+  h.T_cur_ref.linear() = Re;
+  h.T_cur_ref.translation() =
+      Eigen::Vector3d(h.tvec.at<double>(0), h.tvec.at<double>(1), h.tvec.at<double>(2));
+}
+
+std::optional<Eigen::Isometry3d> GeometricMotionSource::predicted_T_cur_ref(
+    const Work& work) const {
+  if (!last_motion_valid_ || work.ref == nullptr) return std::nullopt;
+  const double dt = work.cur.timestamp - work.ref->timestamp;
+  if (!(last_motion_dt_ > 0.0) || !(dt > 0.0)) return std::nullopt;
+  // Constant velocity in the camera frame: the last trusted motion over the same gap, scaled
+  // to this gap's duration.
+  const double s = dt / last_motion_dt_;
+  const Eigen::AngleAxisd aa(last_motion_.linear());
+  Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+  p.linear() = Eigen::AngleAxisd(aa.angle() * s, aa.axis()).toRotationMatrix();
+  p.translation() = last_motion_.translation() * s;
+  return p;
+}
+
+namespace {
+
+// Distance between the camera centres of two poses T_cur_ref that share the reference [m].
+double centre_gap(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return (a.inverse() * b).translation().norm();
+}
+
+}  // namespace
+
+void GeometricMotionSource::apply_motion_prior(const Work& work,
+                                               const std::vector<cv::Point3f>& obj,
+                                               const std::vector<cv::Point2f>& img,
+                                               const cv::Matx33d& K, PoseHypothesis& best) {
+  if (!(params_.max_acceleration > 0.0)) return;
+  const std::optional<Eigen::Isometry3d> pred = predicted_T_cur_ref(work);
+  if (!pred) return;
+  const double dt = work.cur.timestamp - work.ref->timestamp;
+  const double gap_best = centre_gap(best.T_cur_ref, *pred);
+  if (!(gap_best > params_.max_acceleration * dt * dt)) return;
+  // The largest consensus is far from the prediction: a near mover whose motion, with a
+  // rotation, also fits the far background. The matches the prediction explains (within 3×
+  // the inlier threshold) give the other hypothesis.
+  const PinholeCamera& cs = work.cs;
+  const double gate = 3.0 * inlier_threshold();
+  std::vector<cv::Point3f> og;
+  std::vector<cv::Point2f> ig;
+  for (std::size_t i = 0; i < obj.size(); ++i) {
+    const Eigen::Vector3d q = *pred * Eigen::Vector3d(obj[i].x, obj[i].y, obj[i].z);
+    if (q.z() <= 0.0) continue;
+    const double du = cs.fx * q.x() / q.z() + cs.cx - img[i].x;
+    const double dv = cs.fy * q.y() / q.z() + cs.cy - img[i].y;
+    if (std::hypot(du, dv) > gate) continue;
+    og.push_back(obj[i]);
+    ig.push_back(img[i]);
+  }
+  if (static_cast<int>(og.size()) < params_.min_pose_inliers) return;
+  PoseHypothesis other = robust_pose(og, ig, K);
+  if (!other.ok || static_cast<int>(other.inliers.size()) < params_.min_pose_inliers) return;
+  refine_pose(og, ig, K, other);
+  if (centre_gap(other.T_cur_ref, *pred) < 0.5 * gap_best) {
+    best = std::move(other);
+    stats_.prior_replaced = true;
   }
 }
 
