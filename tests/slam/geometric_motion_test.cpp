@@ -47,6 +47,7 @@
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
 #include "ds3d/slam/synth.hpp"
 #include "support/files.hpp"
+#include "support/synth_frames.hpp"
 
 namespace {
 
@@ -368,13 +369,9 @@ TEST(GeometricMotion, RejectsBadParams) {
 // too, so PnP-RANSAC's largest consensus is his motion. The constant-velocity prior finds the
 // camera's own (mean error of the source's two-frame motion against the ground truth).
 TEST(GeometricMotion, MotionPriorKeepsTheEgoMotionOffACrossingPerson) {
-  ds3d::synth::SynthOptions o;
-  o.scenario = ds3d::synth::Scenario::kCrowdHandheld;
-  o.num_frames = 120;
-  o.seed = 2;
-  const ds3d::synth::SyntheticScene scene(o);
-  std::vector<ds3d::synth::SynthFrame> frames;
-  for (std::size_t i = 0; i < 12; ++i) frames.push_back(scene.render(i));
+  const auto frames =
+      ds3d::test::render_sequence(ds3d::synth::Scenario::kCrowdHandheld, 120, 2, 12);
+  const ds3d::PinholeCamera camera = ds3d::synth::SynthOptions{}.camera;
   int replaced = 0;
   const auto mean_error = [&](double max_acceleration) {
     GeometricMotionSource src({.max_acceleration = max_acceleration});
@@ -387,7 +384,7 @@ TEST(GeometricMotion, MotionPriorKeepsTheEgoMotionOffACrossingPerson) {
       f.timestamp = frames[i].timestamp;
       f.rgb = frames[i].rgb;
       f.depth = frames[i].depth;
-      (void)src.detect(f, o.camera);
+      (void)src.detect(f, camera);
       est.push_back(src.last_stats().T_world_cam);
       replaced += src.last_stats().prior_replaced ? 1 : 0;
       if (i < 3 || !src.last_stats().pose_ok) continue;

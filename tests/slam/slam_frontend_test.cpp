@@ -528,13 +528,7 @@ class SilentSource final : public ds3d::slam::DynamicObjectSource {
 // decimetres in one frame. The motion gate retracks those frames from the constant-velocity
 // prediction and keeps the camera within centimetres.
 TEST(SlamFrontend, MotionGateHoldsThePoseWhenACrossingPersonTakesOver) {
-  ds3d::synth::SynthOptions o;
-  o.scenario = ds3d::synth::Scenario::kCrowdCross;
-  o.num_frames = 120;
-  o.seed = 1;
-  const ds3d::synth::SyntheticScene scene(o);
-  std::vector<ds3d::synth::SynthFrame> frames;
-  for (std::size_t i = 0; i < 14; ++i) frames.push_back(scene.render(i));
+  const auto frames = ds3d::test::render_sequence(ds3d::synth::Scenario::kCrowdCross, 120, 1, 14);
   FrontendConfig cfg = synth_config();
   const auto source = std::make_shared<SilentSource>();
   const SlamRun on = run(frames, cfg, false, std::make_shared<TruthMasker>(frames), source);
