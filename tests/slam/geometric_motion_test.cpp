@@ -388,8 +388,7 @@ TEST(GeometricMotion, MotionPriorKeepsTheEgoMotionOffACrossingPerson) {
       est.push_back(src.last_stats().T_world_cam);
       replaced += src.last_stats().prior_replaced ? 1 : 0;
       if (i < 3 || !src.last_stats().pose_ok) continue;
-      const Eigen::Isometry3d truth =
-          frames[i - 2].T_world_cam.inverse() * frames[i].T_world_cam;
+      const Eigen::Isometry3d truth = frames[i - 2].T_world_cam.inverse() * frames[i].T_world_cam;
       const Eigen::Isometry3d mine = est[i - 2].inverse() * est[i];
       sum += (truth.inverse() * mine).translation().norm();
       ++n;

@@ -67,7 +67,7 @@ using ds3d::slam::GeometricMotionStats;
   X(pose_ok, "a reference was available and the pose is trusted")                  \
   X(num_matches, "descriptor matches with the reference (reference depth)")        \
   X(num_pose_inliers, "PnP-RANSAC inliers")                                        \
-  X(prior_replaced, "the motion prior replaced the largest-consensus pose")         \
+  X(prior_replaced, "the motion prior replaced the largest-consensus pose")        \
   X(num_tested, "keypoints with depth in both views that were chi2-tested")        \
   X(num_moving_keypoints, "tested keypoints above moving_chi2")                    \
   X(num_warp_tested, "grid pixels tested by the dense depth warp")                 \

@@ -396,8 +396,7 @@ GeometricMotionSource::PoseHypothesis GeometricMotionSource::robust_pose(
   PoseHypothesis h;
   h.ok = cv::solvePnPRansac(obj, img, K, cv::noArray(), h.rvec, h.tvec, false,
                             params_.ransac_iterations, static_cast<float>(inlier_threshold()), 0.99,
-                            h.inliers,
-                            cv::SOLVEPNP_EPNP);
+                            h.inliers, cv::SOLVEPNP_EPNP);
   return h;
 }
 

@@ -237,9 +237,8 @@ class GeometricMotionSource final : public DynamicObjectSource {
   [[nodiscard]] PoseHypothesis robust_pose(const std::vector<cv::Point3f>& obj,
                                            const std::vector<cv::Point2f>& img,
                                            const cv::Matx33d& K) const;
-  static void refine_pose(const std::vector<cv::Point3f>& obj,
-                          const std::vector<cv::Point2f>& img, const cv::Matx33d& K,
-                          PoseHypothesis& h);
+  static void refine_pose(const std::vector<cv::Point3f>& obj, const std::vector<cv::Point2f>& img,
+                          const cv::Matx33d& K, PoseHypothesis& h);
   [[nodiscard]] std::optional<Eigen::Isometry3d> predicted_T_cur_ref(const Work& work) const;
   void apply_motion_prior(const Work& work, const std::vector<cv::Point3f>& obj,
                           const std::vector<cv::Point2f>& img, const cv::Matx33d& K,
@@ -262,7 +261,7 @@ class GeometricMotionSource final : public DynamicObjectSource {
   int grid_stride_ = 0;                     // stride grid_rays_ was computed for
   std::size_t frame_count_ = 0;
   Eigen::Isometry3d last_motion_ = Eigen::Isometry3d::Identity();  // last trusted T_cur_ref
-  double last_motion_dt_ = 0;      // its time span [s]
+  double last_motion_dt_ = 0;                                      // its time span [s]
   bool last_motion_valid_ = false;  // the previous frame's pose was trusted
   GeometricMotionStats stats_;
   std::vector<TestedKeypoint> tested_;
