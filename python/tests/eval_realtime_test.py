@@ -2,8 +2,8 @@
 # SPDX-FileCopyrightText: 2026 ds3d authors
 """scripts/eval-realtime.py on a tiny synthetic sequence: one row per mode with the medians of
 its runs, byte-identical runs reported as such, --check failing on a missed target and naming
-it, a failed ATE said with its command, modes from a suite file, bad arguments refused, absent
-data skipped."""
+it, --realtime playing the recording at its rate with the same trajectory, a failed ATE said
+with its command, modes from a suite file, bad arguments refused, absent data skipped."""
 import json
 import os
 import pathlib
@@ -56,6 +56,28 @@ def test_check_names_the_missed_target(seq, tmp_path):
     relaxed = _script("--sequences", str(seq), "--modes", "none", "--reps", "1", "--out",
                       str(tmp_path), "--check", "--min-fps", "1e-3", "--max-p95-ms", "1e9")
     assert relaxed.returncode == 0, relaxed.stdout
+
+
+def test_realtime_plays_the_recording_and_skips_the_fps_target(seq, tmp_path):
+    fast = _script("--sequences", str(seq), "--modes", "none", "--reps", "1", "--out",
+                   str(tmp_path / "fast"))
+    assert fast.returncode == 0, fast.stderr
+    done = _script("--sequences", str(seq), "--modes", "none", "--reps", "1", "--out",
+                   str(tmp_path / "live"), "--realtime", "--check", "--min-fps", "1e9",
+                   "--max-p95-ms", "1e9")
+    assert done.returncode == 0, done.stdout + done.stderr
+    (row,) = json.loads((tmp_path / "live" / "results.json").read_text())
+    assert row["realtime"] and row["input_lag_p95_ms"] >= 0
+    assert "input lag p95 [ms]" in done.stdout
+    # The same trajectory as when reading as fast as possible.
+    assert ((tmp_path / "live" / "wx_0_1.txt").read_bytes()
+            == (tmp_path / "fast" / "wx_0_1.txt").read_bytes())
+    (fast_row,) = json.loads((tmp_path / "fast" / "results.json").read_text())
+    assert not fast_row["realtime"] and fast_row["input_lag_p95_ms"] is None
+    strict = _script("--sequences", str(seq), "--modes", "none", "--reps", "1", "--out",
+                     str(tmp_path / "live"), "--realtime", "--check", "--max-p95-ms", "1e-3")
+    assert strict.returncode == 1
+    assert "not checked with --realtime" in strict.stdout and "p95 interval" in strict.stdout
 
 
 def test_bad_arguments_and_absent_data(tmp_path):

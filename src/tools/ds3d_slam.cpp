@@ -42,6 +42,7 @@
 #include "ds3d/htx/weights_io.hpp"
 #include "ds3d/version.hpp"
 #include "ds3d_slam/dynamic_out.hpp"
+#include "ds3d_slam/live_pacer.hpp"
 #include "ds3d_slam/run_guard.hpp"
 
 namespace {
@@ -53,7 +54,7 @@ constexpr const char* kUsage =
     "                 [--max-frames N] [--stats stats.json] [--viz OUT_DIR]\n"
     "                 [--dynamic-out DIR]\n"
     "                 [--keyframes kf.txt] [--map map.ply] [--config FILE] [--set KEY=VALUE]...\n"
-    "                 [--quiet]\n"
+    "                 [--realtime] [--quiet]\n"
     "       ds3d-slam [--config FILE] [--set KEY=VALUE]... --dump-config\n"
     "       ds3d-slam --help | --version\n"
     "Tracks an RGB-D sequence in TUM layout (rgb.txt, depth.txt) and writes one camera-to-world\n"
@@ -79,6 +80,10 @@ constexpr const char* kUsage =
     "  processed or on the source's pixel mask) and one line of DIR/keypoints.jsonl (timestamp,\n"
     "  frame, mask, u, v, status: unmatched|tracked|dynamic|depth_edge per keypoint); see\n"
     "  docs/slam.md.\n"
+    "--realtime: hand the frames over at the rate of their timestamps, as a live camera delivers\n"
+    "  them (default: as fast as the pipeline takes them). A frame the pipeline is not ready for\n"
+    "  is handed over late, never dropped: the trajectory is the same; --stats input_lag says how\n"
+    "  late (docs/benchmarks.md).\n"
     "--config FILE: keys from a YAML or JSON file (nested `htx: {min_score: 0.4}` or dotted\n"
     "  `htx.min_score: 0.4`); --set KEY=VALUE overrides one key (repeatable; after --config,\n"
     "  in command-line order with --dynamic, --gate and --weights). --dump-config prints every\n"
@@ -97,6 +102,7 @@ struct Args {
   std::filesystem::path keyframes;
   std::filesystem::path map;
   bool dump_config = false;
+  bool realtime = false;
   bool quiet = false;
 };
 
@@ -180,6 +186,8 @@ Args parse(int argc, char** argv) {
       sets.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
     } else if (s == "--dump-config") {
       a.dump_config = true;
+    } else if (s == "--realtime") {
+      a.realtime = true;
     } else if (s == "--quiet") {
       a.quiet = true;
     } else if (!s.empty() && s[0] == '-') {
@@ -253,6 +261,7 @@ struct FrameRecord {
   bool odometry = false;
   bool motion_gated = false;
   double interval_ms = 0;  // wall time since the previous pose out (the first: since the start)
+  double latency_ms = 0;   // wall time from the frame read (decoded; --realtime: handed over)
 
   static FrameRecord of(const ds3d::slam::TrackResult& r) {
     return {r.tracked,     r.state,        r.times,       r.num_features,
@@ -303,6 +312,7 @@ void write_per_frame(std::ostream& js, const std::vector<FrameRecord>& results) 
   }
   const std::vector<std::pair<const char*, double (*)(const R&)>> times{
       {"interval_ms", [](const R& r) { return r.interval_ms; }},
+      {"latency_ms", [](const R& r) { return r.latency_ms; }},
       {"extract_ms", [](const R& r) { return r.times.extract_ms; }},
       {"detect_ms", [](const R& r) { return r.times.detect_ms; }},
       {"track_ms", [](const R& r) { return r.times.track_ms; }},
@@ -317,11 +327,22 @@ void write_per_frame(std::ostream& js, const std::vector<FrameRecord>& results) 
   js << "\n  }\n";
 }
 
+// --realtime: how late the frames were handed over [ms] (median, p95, max); null without it.
+std::string input_lag_json(bool realtime, const std::vector<double>& lag_ms) {
+  if (!realtime) return "null";
+  const auto p = percentiles(lag_ms);
+  const double max = lag_ms.empty() ? 0.0 : *std::max_element(lag_ms.begin(), lag_ms.end());
+  using ds3d::detail::json_number;
+  return "{\"median_ms\": " + json_number(p.median) + ", \"p95_ms\": " + json_number(p.p95) +
+         ", \"max_ms\": " + json_number(max) + "}";
+}
+
 // Prints the one-line summary (unless --quiet) and returns the --stats JSON.
 std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
                        const std::vector<FrameRecord>& results, const std::vector<double>& frame_ms,
-                       const std::vector<double>& latency_ms, double wall_s, std::size_t total,
-                       const StopInfo& stop, const ds3d_slam_tool::InputWarnings& warn) {
+                       const std::vector<double>& latency_ms, const std::vector<double>& lag_ms,
+                       double wall_s, std::size_t total, const StopInfo& stop,
+                       const ds3d_slam_tool::InputWarnings& warn) {
   const ds3d::slam::SlamConfig& c = a.config;
   std::size_t tracked = 0;
   std::size_t lost = 0;
@@ -386,6 +407,7 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
      << "  \"culled_keyframes\": " << slam.culled_keyframes().size() << ",\n"
      << "  \"map_points\": " << slam.map_points().rows() << ",\n"
      << "  \"threaded\": " << (c.pipeline.threaded ? "true" : "false") << ",\n"
+     << "  \"realtime\": " << (a.realtime ? "true" : "false") << ",\n"
      << "  \"wall_s\": " << json_number(wall_s) << ",\n"
      << "  \"fps_mean\": " << json_number(static_cast<double>(results.size()) / wall_s) << ",\n"
      << "  \"fps_median\": " << json_number(fps_p.median) << ",\n"
@@ -393,6 +415,7 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
      << ", \"p95_ms\": " << json_number(percentiles(frame_ms).p95) << "},\n"
      << "  \"latency\": {\"median_ms\": " << json_number(percentiles(latency_ms).median)
      << ", \"p95_ms\": " << json_number(percentiles(latency_ms).p95) << "},\n"
+     << "  \"input_lag\": " << input_lag_json(a.realtime, lag_ms) << ",\n"
      << "  \"local_ba\": {\"count\": " << slam.num_local_ba()
      << ", \"total_cpu_ms\": " << json_number(slam.local_ba_ms()) << ", \"mean_cpu_ms\": "
      << json_number(slam.num_local_ba() > 0
@@ -416,7 +439,9 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
     std::cout << "frames " << results.size() << ", tracked " << tracked << ", lost " << lost
               << ", keyframes " << slam.num_keyframes() << ", map points "
               << slam.map_points().rows() << ", " << static_cast<double>(results.size()) / wall_s
-              << " fps (median " << fps_p.median << ")\n";
+              << " fps (median " << fps_p.median << ")";
+    if (a.realtime) std::cout << ", input lag p95 " << percentiles(lag_ms).p95 << " ms";
+    std::cout << "\n";
   }
   return js.str();
 }
@@ -499,17 +524,20 @@ int run(const Args& a) {
     const auto now = std::chrono::steady_clock::now();
     frame_ms.push_back(std::chrono::duration<double, std::milli>(now - last).count());
     last = now;
+    double latency = std::numeric_limits<double>::quiet_NaN();
     {
       const std::lock_guard<std::mutex> lock(read_mutex);
       const auto it = read_at.find(r.index);
       if (it != read_at.end()) {
-        latency_ms.push_back(std::chrono::duration<double, std::milli>(now - it->second).count());
+        latency = std::chrono::duration<double, std::milli>(now - it->second).count();
+        latency_ms.push_back(latency);
         read_at.erase(it);
       }
     }
     ++done;
     results.push_back(FrameRecord::of(r));
     results.back().interval_ms = frame_ms.back();
+    results.back().latency_ms = latency;
     if (!a.viz.empty() || dynamic_out) {
       const auto rec = masker ? masker->take(r.index) : ds3d_slam_tool::DynamicRecord{};
       if (!a.viz.empty()) draw_viz(a.viz, ds, r, rec.boxes);
@@ -530,6 +558,8 @@ int run(const Args& a) {
   // Frames are read here (not by run_dataset) so that an unreadable frame or a stop signal ends
   // the input: the frames read so far are still tracked, finished and written.
   StopInfo stop;
+  ds3d_slam_tool::LivePacer pacer;  // --realtime
+  const auto stop_requested = [] { return ds3d_slam_tool::stop_signal() != 0; };
   std::size_t next_index = a.start_frame;
   const auto next = [&]() -> std::optional<ds3d::slam::FrameInput> {
     if (next_index >= end || ds3d_slam_tool::stop_signal() != 0) return std::nullopt;
@@ -543,10 +573,15 @@ int run(const Args& a) {
       }
       return std::nullopt;
     }
+    // --realtime: the latency counts from when a live camera would have delivered the frame; a
+    // stop request while waiting for it ends the input before it.
+    const auto delivered =
+        a.realtime ? pacer.wait(f.timestamp, stop_requested) : std::chrono::steady_clock::now();
+    if (stop_requested()) return std::nullopt;
     ++next_index;
     ds3d::slam::FrameInput in = ds3d::slam::to_frame_input(std::move(f));
     const std::lock_guard<std::mutex> lock(read_mutex);
-    read_at[in.index] = std::chrono::steady_clock::now();
+    read_at[in.index] = delivered;
     return in;
   };
   ds3d_slam_tool::install_stop_handler();
@@ -564,9 +599,9 @@ int run(const Args& a) {
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   if (!stop.message.empty()) std::cerr << "ds3d-slam: " << stop.message << "\n";
-  write_outputs(
-      a, slam,
-      report_run(a, slam, results, frame_ms, latency_ms, wall_s, total, stop, input_warnings));
+  write_outputs(a, slam,
+                report_run(a, slam, results, frame_ms, latency_ms, pacer.lag_ms(), wall_s, total,
+                           stop, input_warnings));
   if (stop.stopped()) {
     std::cerr << "ds3d-slam: stopped early (" << stop.reason << ") after " << results.size()
               << " of " << total << " frames; the trajectory of the frames tracked so far is in "

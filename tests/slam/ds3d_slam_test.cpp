@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -254,7 +255,8 @@ TEST_F(Ds3dSlamCli, WarnsAboutDuplicateStampsGapsAndUnmatchedDetections) {
   }
   // Per-frame times: one finite, non-negative entry per frame.
   const auto& per_frame = stats.at("per_frame");
-  for (const char* key : {"interval_ms", "extract_ms", "detect_ms", "track_ms", "track_cpu_ms"}) {
+  for (const char* key :
+       {"interval_ms", "latency_ms", "extract_ms", "detect_ms", "track_ms", "track_cpu_ms"}) {
     const auto& a = per_frame.at(key).as_array();
     ASSERT_EQ(a.size(), per_frame.at("state").as_array().size()) << key;
     for (const auto& v : a) {
@@ -333,6 +335,71 @@ TEST_F(Ds3dSlamCli, StartFrameSkipsTheFirstFrames) {
       EXPECT_NE(r.output.find("has 32 associated frames"), std::string::npos) << r.output;
     }
   }
+}
+
+// --realtime hands the frames over at the rate of their timestamps: the run lasts at least the
+// recording's span, and the trajectory is the one of a run that reads as fast as it can.
+TEST_F(Ds3dSlamCli, RealtimePlaysAtTheRecordedRateWithTheSameTrajectory) {
+  const auto stamps = frame_stamps(work_ / "seq");
+  ASSERT_EQ(stamps.size(), 8U);
+  auto r = ds3d::test::run_tool("ds3d-slam", args());
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string fast = ds3d::test::read_file(work_ / "traj.txt");
+  auto stats = ds3d::test::read_json(work_ / "stats.json");
+  EXPECT_FALSE(stats.at("realtime").as_bool());
+  EXPECT_TRUE(stats.at("input_lag").is_null());
+
+  const auto t0 = std::chrono::steady_clock::now();
+  r = ds3d::test::run_tool("ds3d-slam", args("--realtime"));
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(ds3d::test::read_file(work_ / "traj.txt"), fast);
+  const double span = stamps.back() - stamps.front();
+  EXPECT_GE(wall, span);
+  stats = ds3d::test::read_json(work_ / "stats.json");
+  EXPECT_TRUE(stats.at("realtime").as_bool());
+  EXPECT_GE(stats.at("wall_s").as_number(), span);
+  const auto& lag = stats.at("input_lag");
+  EXPECT_GE(lag.at("median_ms").as_number(), 0.0);
+  EXPECT_GE(lag.at("p95_ms").as_number(), lag.at("median_ms").as_number());
+  EXPECT_GE(lag.at("max_ms").as_number(), lag.at("p95_ms").as_number());
+  // Latency counts from when a live camera would have delivered each frame.
+  const auto& latency = stats.at("per_frame").at("latency_ms").as_array();
+  ASSERT_EQ(latency.size(), 8U);
+  for (const auto& v : latency) EXPECT_TRUE(std::isfinite(v.as_number()) && v.as_number() > 0.0);
+}
+
+// SIGINT while --realtime waits out a 1000-s gap in the recording: the run stops at once and
+// writes the frames tracked so far.
+TEST_F(Ds3dSlamCli, RealtimeStopsDuringAGapOnSigint) {
+  for (const char* list : {"rgb.txt", "depth.txt"}) {
+    std::vector<std::string> lines;
+    std::size_t k = 0;
+    for (const auto& l : ds3d::test::read_lines(work_ / "seq" / list)) {
+      if (l.empty() || l[0] == '#') continue;
+      const double t = std::stod(l.substr(0, l.find(' '))) + (k++ >= 4 ? 1000.0 : 0.0);
+      lines.push_back(std::to_string(t) + l.substr(l.find(' ')));
+    }
+    std::ofstream out(work_ / "seq" / list);
+    for (const auto& l : lines) out << l << "\n";
+  }
+  const std::string cmd = "exec '" + ds3d::test::tool_path("ds3d-slam").string() + "' " +
+                          args("--realtime") + " > '" + (work_ / "log.txt").string() + "' 2>&1";
+  const char* argv[] = {"sh", "-c", cmd.c_str(), nullptr};
+  pid_t pid = 0;
+  ASSERT_EQ(::posix_spawn(&pid, "/bin/sh", nullptr, nullptr, const_cast<char**>(argv), environ), 0);
+  while (!sigint_caught(pid)) ::usleep(1000);  // the stop handler is installed
+  ::usleep(2000 * 1000);  // frames 0-3 take 0.1 s of recording: the reader now waits for frame 4
+  ASSERT_EQ(::kill(pid, SIGINT), 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  const std::string log = ds3d::test::read_file(work_ / "log.txt");
+  ASSERT_TRUE(WIFEXITED(status)) << log;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << log;
+  EXPECT_LE(poses(), 4U);
+  const auto stats = ds3d::test::read_json(work_ / "stats.json");
+  EXPECT_TRUE(stats.at("stopped_early").as_bool());
+  EXPECT_LT(stats.at("wall_s").as_number(), 60.0);  // not the 1000 s of the gap
 }
 
 // A 6-frame sequence with two walkers, their ground-truth masks (mask/) and detections with
