@@ -261,7 +261,8 @@ struct FrameRecord {
   bool odometry = false;
   bool motion_gated = false;
   double interval_ms = 0;  // wall time since the previous pose out (the first: since the start)
-  double latency_ms = 0;   // wall time from the frame read (decoded; --realtime: handed over)
+  double latency_ms = 0;   // wall time to pose out from the frame read (decoded), or with
+                           // --realtime from when a live camera would have delivered it
 
   static FrameRecord of(const ds3d::slam::TrackResult& r) {
     return {r.tracked,     r.state,        r.times,       r.num_features,

@@ -15,8 +15,10 @@ LivePacer::Clock::time_point LivePacer::wait(double stamp, const std::function<b
     lag_ms_.push_back(0.0);
     return now;
   }
+  // Clamped to ±10⁶ s (11 days), so that no stamp difference overflows the clock's ticks.
+  const double offset_s = std::clamp(stamp - first_stamp_, -1e6, 1e6);
   const auto due = *start_ + std::chrono::duration_cast<Clock::duration>(
-                                 std::chrono::duration<double>(stamp - first_stamp_));
+                                 std::chrono::duration<double>(offset_s));
   // In slices, so that a stop request during a long gap in the recording is seen.
   constexpr auto kSlice = std::chrono::milliseconds(20);
   auto t = now;
