@@ -384,6 +384,7 @@ void GeometricMotionSource::match_and_pose(Work& work) {
     }
   }
   last_motion_valid_ = stats_.pose_ok;
+  motion_seen_ = motion_seen_ || stats_.pose_ok;
   if (stats_.pose_ok) {
     last_motion_ = T_cur_ref;
     last_motion_dt_ = cur.timestamp - ref->timestamp;
@@ -423,7 +424,11 @@ void GeometricMotionSource::refine_pose(const std::vector<cv::Point3f>& obj,
 
 std::optional<Eigen::Isometry3d> GeometricMotionSource::predicted_T_cur_ref(
     const Work& work) const {
-  if (!last_motion_valid_ || work.ref == nullptr) return std::nullopt;
+  if (work.ref == nullptr) return std::nullopt;
+  // Before the first trusted motion: at rest. People in view from the first frame can otherwise
+  // make the first motion theirs, and every later prediction with it.
+  if (!motion_seen_) return Eigen::Isometry3d::Identity();
+  if (!last_motion_valid_) return std::nullopt;
   const double dt = work.cur.timestamp - work.ref->timestamp;
   if (!(last_motion_dt_ > 0.0) || !(dt > 0.0)) return std::nullopt;
   // Constant velocity in the camera frame: the last trusted motion over the same gap, scaled

@@ -92,7 +92,8 @@ struct GeometricMotionParams {
   /// Motion prior of the source's own ego-motion [m/s²], >= 0 (0 = off). When the pose with the
   /// most inliers puts the camera centre farther than max_acceleration · dt² from the
   /// constant-velocity prediction (the previous frame's trusted motion over the same reference
-  /// gap, scaled to this gap's dt [s]), PnP-RANSAC runs again on the matches the prediction
+  /// gap, scaled to this gap's dt [s]; until the source has trusted a first motion, rest: a
+  /// camera starts from standing still), PnP-RANSAC runs again on the matches the prediction
   /// explains (within 3× the inlier threshold); that pose replaces the first one when it has
   /// min_pose_inliers inliers and lies less than half as far from the prediction. A person
   /// walking across close to the camera moves it as a shift that a rotation makes fit the far
@@ -263,6 +264,7 @@ class GeometricMotionSource final : public DynamicObjectSource {
   Eigen::Isometry3d last_motion_ = Eigen::Isometry3d::Identity();  // last trusted T_cur_ref
   double last_motion_dt_ = 0;                                      // its time span [s]
   bool last_motion_valid_ = false;  // the previous frame's pose was trusted
+  bool motion_seen_ = false;        // some frame's pose was trusted (before: predict rest)
   GeometricMotionStats stats_;
   std::vector<TestedKeypoint> tested_;
   std::vector<Eigen::Vector2f> moving_pixels_;
