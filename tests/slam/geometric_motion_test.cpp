@@ -364,16 +364,14 @@ TEST(GeometricMotion, RejectsBadParams) {
   }
 }
 
-// Mean error [m] of the source's two-frame ego-motion against the ground truth, over the frames
-// from `first` on whose pose the source trusts; `replaced` counts the frames where the motion
-// prior chose the pose.
-double mean_two_frame_error(const std::vector<ds3d::synth::SynthFrame>& frames,
-                            double max_acceleration, std::size_t first, int& replaced) {
+// Runs a GeometricMotionSource with the given motion prior over rendered frames and calls
+// `after(i, src)` after each frame; returns how many frames' poses the prior chose.
+template <class After>
+int run_source(const std::vector<ds3d::synth::SynthFrame>& frames, double max_acceleration,
+               After&& after) {
   const ds3d::PinholeCamera camera = ds3d::synth::SynthOptions{}.camera;
   GeometricMotionSource src({.max_acceleration = max_acceleration});
-  std::vector<Eigen::Isometry3d> est;
-  double sum = 0;
-  int n = 0;
+  int replaced = 0;
   for (std::size_t i = 0; i < frames.size(); ++i) {
     FrameInput f;
     f.index = i;
@@ -381,16 +379,49 @@ double mean_two_frame_error(const std::vector<ds3d::synth::SynthFrame>& frames,
     f.rgb = frames[i].rgb;
     f.depth = frames[i].depth;
     (void)src.detect(f, camera);
-    est.push_back(src.last_stats().T_world_cam);
     replaced += src.last_stats().prior_replaced ? 1 : 0;
-    if (i < first || !src.last_stats().pose_ok) continue;
+    after(i, src);
+  }
+  return replaced;
+}
+
+// Mean error [m] of the source's two-frame ego-motion against the ground truth, over the frames
+// from `first` on whose pose the source trusts; `replaced` counts the frames where the motion
+// prior chose the pose.
+double mean_two_frame_error(const std::vector<ds3d::synth::SynthFrame>& frames,
+                            double max_acceleration, std::size_t first, int& replaced) {
+  std::vector<Eigen::Isometry3d> est;
+  double sum = 0;
+  int n = 0;
+  replaced += run_source(frames, max_acceleration, [&](std::size_t i, const auto& src) {
+    est.push_back(src.last_stats().T_world_cam);
+    if (i < first || !src.last_stats().pose_ok) return;
     const Eigen::Isometry3d truth = frames[i - 2].T_world_cam.inverse() * frames[i].T_world_cam;
     const Eigen::Isometry3d mine = est[i - 2].inverse() * est[i];
     sum += (truth.inverse() * mine).translation().norm();
     ++n;
-  }
+  });
   EXPECT_GE(n, static_cast<int>(frames.size() - first) - 1);
   return sum / std::max(n, 1);
+}
+
+// The share of the tested keypoints on the generator's dynamic mask that the source flags as
+// moving, over all frames.
+double mover_recall(const std::vector<ds3d::synth::SynthFrame>& frames, double max_acceleration,
+                    int& replaced) {
+  int on_mask = 0;
+  int flagged = 0;
+  replaced += run_source(frames, max_acceleration, [&](std::size_t i, const auto& src) {
+    for (const auto& k : src.last_tested()) {
+      const int v = static_cast<int>(std::lround(k.v));
+      const int u = static_cast<int>(std::lround(k.u));
+      if (frames[i].dynamic_mask.at<std::uint8_t>(v, u) == 0) continue;
+      ++on_mask;
+      flagged += k.moving ? 1 : 0;
+    }
+  });
+  EXPECT_GE(on_mask, 100);
+  return static_cast<double>(flagged) / std::max(on_mask, 1);
 }
 
 // Two people cross within a metre of a hand-held camera (crowd_handheld seed 2): one of them,
@@ -415,38 +446,14 @@ TEST(GeometricMotion, MotionPriorKeepsTheEgoMotionOffACrossingPerson) {
 // A near person and the box he carries cover about 40 % of the first frame (crowd_board seed
 // 2) and, with a rotation, fit the 4-m wall behind them: without a prior the largest consensus
 // is their motion from the first pair of frames on, and they are tested as static. Before any
-// motion was trusted the prior predicts rest. Measured: the share of the tested keypoints on the
-// generator's dynamic mask that the source flags as moving, frames 1-4.
+// motion was trusted the prior predicts rest. Measured over frames 1-4: the share of the movers'
+// tested keypoints that the source flags.
 TEST(GeometricMotion, MotionPriorAssumesRestBeforeTheFirstTrustedMotion) {
   const auto frames = ds3d::test::render_sequence(ds3d::synth::Scenario::kCrowdBoard, 120, 2, 5);
-  const ds3d::PinholeCamera camera = ds3d::synth::SynthOptions{}.camera;
-  const auto mover_recall = [&](double max_acceleration, int& replaced) {
-    GeometricMotionSource src({.max_acceleration = max_acceleration});
-    int on_mask = 0;
-    int flagged = 0;
-    for (std::size_t i = 0; i < frames.size(); ++i) {
-      FrameInput f;
-      f.index = i;
-      f.timestamp = frames[i].timestamp;
-      f.rgb = frames[i].rgb;
-      f.depth = frames[i].depth;
-      (void)src.detect(f, camera);
-      replaced += src.last_stats().prior_replaced ? 1 : 0;
-      for (const auto& k : src.last_tested()) {
-        if (frames[i].dynamic_mask.at<std::uint8_t>(static_cast<int>(std::lround(k.v)),
-                                                    static_cast<int>(std::lround(k.u))) == 0)
-          continue;
-        ++on_mask;
-        flagged += k.moving ? 1 : 0;
-      }
-    }
-    EXPECT_GE(on_mask, 100);
-    return static_cast<double>(flagged) / std::max(on_mask, 1);
-  };
   int replaced = 0;
-  const double off = mover_recall(0.0, replaced);
+  const double off = mover_recall(frames, 0.0, replaced);
   EXPECT_EQ(replaced, 0);
-  const double on = mover_recall(GeometricMotionParams{}.max_acceleration, replaced);
+  const double on = mover_recall(frames, GeometricMotionParams{}.max_acceleration, replaced);
   EXPECT_GE(replaced, 1);
   std::cout << "crowd_board seed 2, frames 1-4: movers' tested keypoints flagged " << off
             << " without the prior, " << on << " with it\n";
