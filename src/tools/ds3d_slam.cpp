@@ -341,9 +341,8 @@ std::string input_lag_json(bool realtime, const std::vector<double>& lag_ms) {
 // Prints the one-line summary (unless --quiet) and returns the --stats JSON.
 std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
                        const std::vector<FrameRecord>& results, const std::vector<double>& frame_ms,
-                       const std::vector<double>& latency_ms, const std::vector<double>& lag_ms,
-                       double wall_s, std::size_t total, const StopInfo& stop,
-                       const ds3d_slam_tool::InputWarnings& warn) {
+                       const std::vector<double>& lag_ms, double wall_s, std::size_t total,
+                       const StopInfo& stop, const ds3d_slam_tool::InputWarnings& warn) {
   const ds3d::slam::SlamConfig& c = a.config;
   std::size_t tracked = 0;
   std::size_t lost = 0;
@@ -357,7 +356,9 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
   std::vector<double> tr_cpu;
   std::vector<double> de_cpu;
   std::vector<double> pr_cpu;
+  std::vector<double> latency_ms;  // the frames whose read time was known
   for (const auto& r : results) {
+    if (std::isfinite(r.latency_ms)) latency_ms.push_back(r.latency_ms);
     ex_cpu.push_back(r.times.extract_cpu_ms);
     tr_cpu.push_back(r.times.track_cpu_ms);
     de_cpu.push_back(r.times.detect_cpu_ms);
@@ -513,9 +514,8 @@ int run(const Args& a) {
   ds3d::slam::SlamFrontend slam(cfg, source, masker);
 
   const bool tty = !a.quiet && isatty(fileno(stderr)) != 0;
-  std::vector<double> frame_ms;    // wall time between consecutive outputs
-  std::vector<double> latency_ms;  // wall time from a frame read (decoded) to its pose out
-  std::mutex read_mutex;           // read_at: written by the reader thread
+  std::vector<double> frame_ms;  // wall time between consecutive outputs
+  std::mutex read_mutex;         // read_at: written by the reader thread
   std::unordered_map<std::size_t, std::chrono::steady_clock::time_point> read_at;
   std::vector<FrameRecord> results;
   auto last = std::chrono::steady_clock::now();
@@ -531,7 +531,6 @@ int run(const Args& a) {
       const auto it = read_at.find(r.index);
       if (it != read_at.end()) {
         latency = std::chrono::duration<double, std::milli>(now - it->second).count();
-        latency_ms.push_back(latency);
         read_at.erase(it);
       }
     }
@@ -600,9 +599,9 @@ int run(const Args& a) {
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   if (!stop.message.empty()) std::cerr << "ds3d-slam: " << stop.message << "\n";
-  write_outputs(a, slam,
-                report_run(a, slam, results, frame_ms, latency_ms, pacer.lag_ms(), wall_s, total,
-                           stop, input_warnings));
+  write_outputs(
+      a, slam,
+      report_run(a, slam, results, frame_ms, pacer.lag_ms(), wall_s, total, stop, input_warnings));
   if (stop.stopped()) {
     std::cerr << "ds3d-slam: stopped early (" << stop.reason << ") after " << results.size()
               << " of " << total << " frames; the trajectory of the frames tracked so far is in "
