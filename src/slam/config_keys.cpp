@@ -55,6 +55,10 @@ std::vector<ConfigKey> frontend_keys() {
           [](auto& c) -> auto& { return c.frontend.reanchor_after_lost; },
           "consecutive lost frames after which a new map segment starts"),
       key(
+          "frontend.recover_by_projection",
+          [](auto& c) -> auto& { return c.frontend.recover_by_projection; },
+          "after a lost frame, the last pose's local map by projection before relocalisation"),
+      key(
           "frontend.spare_features", [](auto& c) -> auto& { return c.frontend.spare_features; },
           "spare ORB candidates that replace keypoints the dynamic filter removes (0 = off)"),
       key(

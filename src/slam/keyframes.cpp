@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <limits>
 #include <map>
+#include <set>
 #include <utility>
 #include <vector>
 
@@ -219,6 +220,20 @@ std::vector<int> SlamFrontend::Impl::best_covisible(int kf_id, int n) const {
   for (const auto& [id, w] : nb) {
     if (static_cast<int>(out.size()) >= n) break;
     out.push_back(id);
+  }
+  return out;
+}
+
+// The map points of the keyframes `kf_ids`, each once, in order of first sighting; bad ones left
+// out.
+std::vector<int> SlamFrontend::Impl::keyframe_points(const std::vector<int>& kf_ids) const {
+  std::vector<int> out;
+  std::set<int> seen;
+  for (const int id : kf_ids) {
+    for (const int pid : keyframes[static_cast<std::size_t>(id)].data.points) {
+      if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad && seen.insert(pid).second)
+        out.push_back(pid);
+    }
   }
   return out;
 }

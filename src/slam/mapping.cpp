@@ -181,15 +181,7 @@ void SlamFrontend::Impl::search_in_neighbors(int kf_id) {
   }
   for (const int id : targets)
     fuse_into(id, keyframes[static_cast<std::size_t>(kf_id)].data.points);
-  std::vector<int> cands;
-  std::set<int> cand_set;
-  for (const int id : targets) {
-    for (const int pid : keyframes[static_cast<std::size_t>(id)].data.points) {
-      if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad && cand_set.insert(pid).second)
-        cands.push_back(pid);
-    }
-  }
-  fuse_into(kf_id, cands);
+  fuse_into(kf_id, keyframe_points(targets));
   update_connections(keyframes[static_cast<std::size_t>(kf_id)]);
 }
 
@@ -224,24 +216,10 @@ void SlamFrontend::Impl::schedule_local_ba(int kf_id) {
   // A keyframe inserted before the previous BA was due (gap or weak-tracking criterion) must not
   // discard that BA: apply it now (waits for the mapping thread; still deterministic).
   apply_ba_if_due(true);
-  const Keyframe& K = keyframes[static_cast<std::size_t>(kf_id)];
-  std::vector<std::pair<int, int>> nb(K.covis.begin(), K.covis.end());
-  std::stable_sort(nb.begin(), nb.end(),
-                   [](const auto& a, const auto& b) { return a.second > b.second; });
   std::vector<int> local{kf_id};
-  for (const auto& [id, w] : nb) {
-    if (static_cast<int>(local.size()) >= cfg.local_window) break;
-    local.push_back(id);
-  }
+  for (const int id : best_covisible(kf_id, cfg.local_window - 1)) local.push_back(id);
   std::set<int> local_set(local.begin(), local.end());
-  std::vector<int> pts;
-  std::set<int> pts_set;
-  for (const int id : local) {
-    for (const int pid : keyframes[static_cast<std::size_t>(id)].data.points) {
-      if (pid >= 0 && !points[static_cast<std::size_t>(pid)].bad && pts_set.insert(pid).second)
-        pts.push_back(pid);
-    }
-  }
+  const std::vector<int> pts = keyframe_points(local);
   // Fixed keyframes: others observing the local points, most-sharing first.
   std::map<int, int> others;
   for (const int pid : pts) {

@@ -296,9 +296,12 @@ struct SlamFrontend::Impl {
   int match_keyframe(const Keyframe& kf, FrameData& f) const;
   int optimize_frame(FrameData& f, Eigen::Isometry3d& T_cw) const;
   bool pnp_ransac(const FrameData& f, Eigen::Isometry3d& T_cw) const;
+  void forget_seen(const std::vector<int>& cand);
+  int search_widening(FrameData& f, const Eigen::Isometry3d& T_cw, const std::vector<int>& cand);
   bool track_motion_model(FrameData& f, Eigen::Isometry3d& T_cw);
   bool track_keyframe(const Keyframe& kf, FrameData& f, Eigen::Isometry3d& T_cw, int min_inliers);
   bool relocalize(FrameData& f, Eigen::Isometry3d& T_cw);
+  bool recover_by_projection(FrameData& f, Eigen::Isometry3d& T_cw);
   bool track_last_frame(FrameData& f, Eigen::Isometry3d& T_cw);  // odometry.cpp
   std::vector<int> local_keyframes(const FrameData& f);
   int track_local_map(FrameData& f, Eigen::Isometry3d& T_cw);
@@ -328,6 +331,7 @@ struct SlamFrontend::Impl {
                                     const std::uint8_t* desc) const;
   void update_connections(Keyframe& K);
   [[nodiscard]] std::vector<int> best_covisible(int kf_id, int n) const;
+  [[nodiscard]] std::vector<int> keyframe_points(const std::vector<int>& kf_ids) const;
   [[nodiscard]] std::pair<int, int> redundancy(int id) const;
   void cull_keyframes(int current);
   void remove_keyframe(int id, int close, int redundant);

@@ -205,20 +205,28 @@ bool SlamFrontend::Impl::track_motion_model(FrameData& f, Eigen::Isometry3d& T_c
   for (std::size_t i = 0; i < last.size(); ++i) {
     if (last.points[i] >= 0) cand.push_back(last.points[i]);
   }
-  const Eigen::Isometry3d pred = velocity * last_T_cw;
-  T_cw = pred;
-  std::fill(f.points.begin(), f.points.end(), -1);
-  // ORB-SLAM2 uses a 15-pixel window for monocular and RGB-D input.
-  int n = search_by_projection(f, T_cw, cand, 15.0, false, frame_counter);
-  if (n < 20) {
-    std::fill(f.points.begin(), f.points.end(), -1);
-    for (const int pid : cand)
-      points[static_cast<std::size_t>(pid)].last_frame_seen =
-          std::numeric_limits<std::size_t>::max();
-    n = search_by_projection(f, T_cw, cand, 30.0, false, frame_counter);
-  }
-  if (n < 20) return false;
+  T_cw = velocity * last_T_cw;
+  if (search_widening(f, T_cw, cand) < 20) return false;
   return optimize_frame(f, T_cw) >= 10;
+}
+
+// Clears this frame's "matched" mark of each candidate, so that a later search may use it.
+void SlamFrontend::Impl::forget_seen(const std::vector<int>& cand) {
+  for (const int pid : cand)
+    points[static_cast<std::size_t>(pid)].last_frame_seen = std::numeric_limits<std::size_t>::max();
+}
+
+// Matches `cand` into the frame at T_cw by projection (f.points reset first), in a window of 15 px
+// × level scale, or 30 px when fewer than 20 match (ORB-SLAM2's motion-model windows for
+// monocular and RGB-D input). Returns the matches.
+int SlamFrontend::Impl::search_widening(FrameData& f, const Eigen::Isometry3d& T_cw,
+                                        const std::vector<int>& cand) {
+  std::fill(f.points.begin(), f.points.end(), -1);
+  const int n = search_by_projection(f, T_cw, cand, 15.0, false, frame_counter);
+  if (n >= 20) return n;
+  std::fill(f.points.begin(), f.points.end(), -1);
+  forget_seen(cand);
+  return search_by_projection(f, T_cw, cand, 30.0, false, frame_counter);
 }
 
 bool SlamFrontend::Impl::track_keyframe(const Keyframe& kf, FrameData& f, Eigen::Isometry3d& T_cw,
@@ -252,6 +260,28 @@ bool SlamFrontend::Impl::relocalize(FrameData& f, Eigen::Isometry3d& T_cw) {
     std::fill(f.points.begin(), f.points.end(), -1);
   }
   return false;
+}
+
+// FrontendConfig::recover_by_projection: a frame after a lost one, before relocalisation. The
+// map points of the reference keyframe and its best covisible neighbours projected at T_cw (the
+// last tracked pose), then a pose-only optimisation on those matches. True (T_cw and f.points
+// set) when it keeps 20 inliers; the caller then tracks the local map.
+bool SlamFrontend::Impl::recover_by_projection(FrameData& f, Eigen::Isometry3d& T_cw) {
+  if (ref_kf < 0 || keyframes[static_cast<std::size_t>(ref_kf)].bad) return false;
+  std::vector<int> kfs = best_covisible(ref_kf, 10);
+  kfs.push_back(ref_kf);
+  const std::vector<int> cand = keyframe_points(kfs);
+  Eigen::Isometry3d T = T_cw;
+  const bool ok = search_widening(f, T, cand) >= 20 && optimize_frame(f, T) >= 20;
+  // The last pose may lie centimetres off: the local map, searched at the optimised pose, may
+  // match again what this first pass rejected.
+  forget_seen(cand);
+  if (!ok) {
+    std::fill(f.points.begin(), f.points.end(), -1);
+    return false;
+  }
+  T_cw = T;
+  return true;
 }
 
 // Local map: keyframes sharing points with the frame plus their best covisible neighbours.
@@ -429,6 +459,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
     }
   } else {
     bool relocalized = false;
+    bool recovered = false;
     if (last_tracked && velocity_valid) ok = track_motion_model(f, T_cw);
     if (!ok && last_tracked) {
       T_cw = last_T_cw;
@@ -437,6 +468,12 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
     if (!ok && last_tracked && cfg.odometry_fallback) {
       ok = track_last_frame(f, T_cw);
       res.odometry = ok;
+    }
+    if (!ok && !last_tracked && lost_count > 0 && cfg.recover_by_projection) {
+      T_cw = last_T_cw;
+      ok = recover_by_projection(f, T_cw);
+      relocalized = ok;
+      recovered = ok;
     }
     if (!ok) {
       std::fill(f.points.begin(), f.points.end(), -1);
@@ -447,8 +484,8 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
       just_relocalized = relocalized;
       const Eigen::Isometry3d T_before = T_cw;
       inliers = track_local_map(f, T_cw);
-      ok = inliers >=
-           (relocalized ? std::max(50, cfg.min_tracked_inliers) : cfg.min_tracked_inliers);
+      ok = inliers >= (relocalized && !recovered ? std::max(50, cfg.min_tracked_inliers)
+                                                 : cfg.min_tracked_inliers);
       if (!ok && res.odometry) {
         // Too few map points to trust a map pose: keep the odometry pose, start fresh points.
         T_cw = T_before;

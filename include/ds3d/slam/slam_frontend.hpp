@@ -70,6 +70,16 @@ struct FrontendConfig {
   bool final_global_ba = true;   ///< finish() runs a BA over all keyframes and points (first fixed)
   int ba_apply_lag = 3;  ///< frames after a keyframe at which its BA result is applied, >= 0
   int relocalisation_candidates = 30;  ///< most recent keyframes tried when lost, >= 1
+  /// A frame after a lost one is first matched by projection against the map around the last
+  /// tracked pose: the map points of the reference keyframe and its 10 best covisible keyframes
+  /// projected at that pose (windows of 15, then 30 px × level scale, as the motion model), a
+  /// pose-only optimisation (>= 20 inliers), then the local map; the frame counts as recovered
+  /// (TrackState::kRelocalized) with min_tracked_inliers local-map inliers. Relocalisation
+  /// (descriptor matching against one recent keyframe, 50 inliers) follows when this fails.
+  /// While people still cover much of the view, the static map points around the last pose are
+  /// often fewer than one keyframe's 50 but enough to hold the pose, and the map goes on instead
+  /// of being re-anchored at a frozen pose. Off: relocalisation alone.
+  bool recover_by_projection = true;
   int reanchor_after_lost = 10;  ///< consecutive lost frames after which a new map segment starts
                                  ///< at the last pose (0 = never), >= 0
   /// Spare ORB candidates kept per frame (the ones the even spread would pick next, with
