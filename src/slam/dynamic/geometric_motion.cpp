@@ -461,10 +461,11 @@ void GeometricMotionSource::apply_motion_prior(const Work& work,
   const double gap_best = centre_gap(best.T_cur_ref, *pred);
   if (!(gap_best > params_.max_acceleration * dt * dt)) return;
   // The largest consensus is far from the prediction: a near mover whose motion, with a
-  // rotation, also fits the far background. The matches the prediction explains (within 3×
-  // the inlier threshold) give the other hypothesis.
+  // rotation, also fits the far background. The matches the prediction explains (within 2×
+  // the inlier threshold) give the other hypothesis. In front of a far wall a wider window lets
+  // the prediction explain the mover's matches as well, and the second RANSAC finds it again.
   const PinholeCamera& cs = work.cs;
-  const double gate = 3.0 * inlier_threshold();
+  const double gate = 2.0 * inlier_threshold();
   std::vector<cv::Point3f> og;
   std::vector<cv::Point2f> ig;
   for (std::size_t i = 0; i < obj.size(); ++i) {

@@ -94,7 +94,7 @@ struct GeometricMotionParams {
   /// constant-velocity prediction (the previous frame's trusted motion over the same reference
   /// gap, scaled to this gap's dt [s]; until the source has trusted a first motion, rest: a
   /// camera starts from standing still), PnP-RANSAC runs again on the matches the prediction
-  /// explains (within 3× the inlier threshold); that pose replaces the first one when it has
+  /// explains (within 2× the inlier threshold); that pose replaces the first one when it has
   /// min_pose_inliers inliers and lies less than half as far from the prediction. A person
   /// walking across close to the camera moves it as a shift that a rotation makes fit the far
   /// background too, so the most inliers can be the person's (docs/dynamic.md). 10 m/s²: twice
