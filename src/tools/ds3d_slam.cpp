@@ -340,9 +340,9 @@ std::string input_lag_json(bool realtime, const std::vector<double>& lag_ms) {
 
 // Prints the one-line summary (unless --quiet) and returns the --stats JSON.
 std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
-                       const std::vector<FrameRecord>& results, const std::vector<double>& frame_ms,
-                       const std::vector<double>& lag_ms, double wall_s, std::size_t total,
-                       const StopInfo& stop, const ds3d_slam_tool::InputWarnings& warn) {
+                       const std::vector<FrameRecord>& results, const std::vector<double>& lag_ms,
+                       double wall_s, std::size_t total, const StopInfo& stop,
+                       const ds3d_slam_tool::InputWarnings& warn) {
   const ds3d::slam::SlamConfig& c = a.config;
   std::size_t tracked = 0;
   std::size_t lost = 0;
@@ -356,8 +356,10 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
   std::vector<double> tr_cpu;
   std::vector<double> de_cpu;
   std::vector<double> pr_cpu;
+  std::vector<double> frame_ms;    // wall time between consecutive outputs
   std::vector<double> latency_ms;  // the frames whose read time was known
   for (const auto& r : results) {
+    frame_ms.push_back(r.interval_ms);
     if (std::isfinite(r.latency_ms)) latency_ms.push_back(r.latency_ms);
     ex_cpu.push_back(r.times.extract_cpu_ms);
     tr_cpu.push_back(r.times.track_cpu_ms);
@@ -378,6 +380,8 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
   for (std::size_t i = 1; i < frame_ms.size(); ++i)
     fps.push_back(frame_ms[i] > 0 ? 1000.0 / frame_ms[i] : 0.0);
   const auto fps_p = percentiles(fps);
+  const auto interval_p = percentiles(frame_ms);
+  const auto latency_p = percentiles(latency_ms);
   using ds3d::detail::json_escape;
   using ds3d::detail::json_number;
   std::ostringstream js;
@@ -413,10 +417,10 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
      << "  \"wall_s\": " << json_number(wall_s) << ",\n"
      << "  \"fps_mean\": " << json_number(static_cast<double>(results.size()) / wall_s) << ",\n"
      << "  \"fps_median\": " << json_number(fps_p.median) << ",\n"
-     << "  \"frame_interval\": {\"median_ms\": " << json_number(percentiles(frame_ms).median)
-     << ", \"p95_ms\": " << json_number(percentiles(frame_ms).p95) << "},\n"
-     << "  \"latency\": {\"median_ms\": " << json_number(percentiles(latency_ms).median)
-     << ", \"p95_ms\": " << json_number(percentiles(latency_ms).p95) << "},\n"
+     << "  \"frame_interval\": {\"median_ms\": " << json_number(interval_p.median)
+     << ", \"p95_ms\": " << json_number(interval_p.p95) << "},\n"
+     << "  \"latency\": {\"median_ms\": " << json_number(latency_p.median)
+     << ", \"p95_ms\": " << json_number(latency_p.p95) << "},\n"
      << "  \"input_lag\": " << input_lag_json(a.realtime, lag_ms) << ",\n"
      << "  \"local_ba\": {\"count\": " << slam.num_local_ba()
      << ", \"total_cpu_ms\": " << json_number(slam.local_ba_ms()) << ", \"mean_cpu_ms\": "
@@ -514,8 +518,7 @@ int run(const Args& a) {
   ds3d::slam::SlamFrontend slam(cfg, source, masker);
 
   const bool tty = !a.quiet && isatty(fileno(stderr)) != 0;
-  std::vector<double> frame_ms;  // wall time between consecutive outputs
-  std::mutex read_mutex;         // read_at: written by the reader thread
+  std::mutex read_mutex;  // read_at: written by the reader thread
   std::unordered_map<std::size_t, std::chrono::steady_clock::time_point> read_at;
   std::vector<FrameRecord> results;
   auto last = std::chrono::steady_clock::now();
@@ -523,7 +526,7 @@ int run(const Args& a) {
   std::size_t done = 0;
   const auto on_result = [&](const ds3d::slam::TrackResult& r) {
     const auto now = std::chrono::steady_clock::now();
-    frame_ms.push_back(std::chrono::duration<double, std::milli>(now - last).count());
+    const double interval = std::chrono::duration<double, std::milli>(now - last).count();
     last = now;
     double latency = std::numeric_limits<double>::quiet_NaN();
     {
@@ -536,7 +539,7 @@ int run(const Args& a) {
     }
     ++done;
     results.push_back(FrameRecord::of(r));
-    results.back().interval_ms = frame_ms.back();
+    results.back().interval_ms = interval;
     results.back().latency_ms = latency;
     if (!a.viz.empty() || dynamic_out) {
       const auto rec = masker ? masker->take(r.index) : ds3d_slam_tool::DynamicRecord{};
@@ -562,7 +565,7 @@ int run(const Args& a) {
   const auto stop_requested = [] { return ds3d_slam_tool::stop_signal() != 0; };
   std::size_t next_index = a.start_frame;
   const auto next = [&]() -> std::optional<ds3d::slam::FrameInput> {
-    if (next_index >= end || ds3d_slam_tool::stop_signal() != 0) return std::nullopt;
+    if (next_index >= end || stop_requested()) return std::nullopt;
     ds3d::RgbdFrame f;
     try {
       f = ds.frame(next_index);
@@ -599,9 +602,8 @@ int run(const Args& a) {
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   if (!stop.message.empty()) std::cerr << "ds3d-slam: " << stop.message << "\n";
-  write_outputs(
-      a, slam,
-      report_run(a, slam, results, frame_ms, pacer.lag_ms(), wall_s, total, stop, input_warnings));
+  write_outputs(a, slam,
+                report_run(a, slam, results, pacer.lag_ms(), wall_s, total, stop, input_warnings));
   if (stop.stopped()) {
     std::cerr << "ds3d-slam: stopped early (" << stop.reason << ") after " << results.size()
               << " of " << total << " frames; the trajectory of the frames tracked so far is in "
