@@ -159,12 +159,18 @@ def test_frame_by_frame_dynamic_removal_matches_run_slam(walking, spec):
     assert r.keypoints.shape == (r.num_features, 2) and r.keypoints.dtype == np.float32
     assert r.keypoint_status.dtype == np.uint8 and np.array_equal(
         r.dynamic, r.keypoint_status == int(ds3d.KeypointStatus.dynamic))
-    # The removed keypoints lie on the person: mostly inside the rendered dynamic mask.
-    mask = ds3d.synth.Scene("walking_xyz", frames=24, seed=1).render(r.index)["dynamic_mask"]
-    u, v = np.round(r.keypoints[r.dynamic]).astype(int).T
-    assert np.mean(mask[np.clip(v, 0, mask.shape[0] - 1), np.clip(u, 0, mask.shape[1] - 1)]
-                   > 0) > 0.5
     assert r.state in ("tracking", "initialized", "relocalized")
+    # The removed keypoints lie on the people: mostly inside the rendered dynamic masks, over the
+    # sequence. (Single frames can miss: with the floor at the feet kept static, the box filter
+    # takes the wall behind in 2 of the 24 frames of `file`, docs/dynamic.md.)
+    scene = ds3d.synth.Scene("walking_xyz", frames=24, seed=1)
+    on_mask = 0
+    for r in results:
+        mask = scene.render(r.index)["dynamic_mask"]
+        u, v = np.round(r.keypoints[r.dynamic]).astype(int).T
+        on_mask += int(np.count_nonzero(
+            mask[np.clip(v, 0, mask.shape[0] - 1), np.clip(u, 0, mask.shape[1] - 1)] > 0))
+    assert on_mask > 0.6 * sum(dynamic)
 
 
 def test_slam_with_a_source_object_and_return_result(walking):

@@ -392,6 +392,9 @@ std::vector<ConfigKey> filter_keys() {
           "file.min_score", [](auto& c) -> auto& { return c.file.min_score; },
           "detections below this score are dropped, in [0, 1]"),
       key(
+          "file.report_floor", [](auto& c) -> auto& { return c.file.report_floor; },
+          "keypoints on the frame's floor (RANSAC on its depth) stay static in every box"),
+      key(
           "pipeline.threaded", [](auto& c) -> auto& { return c.pipeline.threaded; },
           "stages in their own threads (false: all on the caller's)"),
       key(

@@ -202,6 +202,74 @@ std::pair<int, int> count_on(const std::vector<std::uint8_t>& m, std::size_t gri
   return {on, n};
 }
 
+// A person (slab at 2.5 m, feet on the floor) seen from 1 m above the floor, a wall at 4 m: the
+// depth image, and the detections file boxing the person at frame time 1.0.
+struct PersonOnAFloor {
+  ds3d::PinholeCamera cam;
+  cv::Mat depth{480, 640, CV_16UC1, cv::Scalar(0)};
+  std::string detections;
+  PersonOnAFloor() {
+    const double h = 1.0;  // camera height [m]
+    for (int v = 0; v < depth.rows; ++v) {
+      for (int u = 0; u < depth.cols; ++u) {
+        double z = 4.0;  // wall
+        if (v > cam.cy) z = std::min(z, h * cam.fy / (v - cam.cy));
+        const double y = (v - cam.cy) * 2.5 / cam.fy;
+        if (u >= 270 && u <= 370 && y >= -0.8 && y <= h) z = 2.5;
+        depth.at<std::uint16_t>(v, u) = static_cast<std::uint16_t>(std::lround(z * 5000.0));
+      }
+    }
+    detections = "{\"timestamp\": 1.0, \"boxes\": [{\"corners\": [";
+    for (int i = 0; i < 8; ++i) {
+      detections += std::string(i > 0 ? "," : "") + "[" + ((i & 1) ? "0.3" : "-0.3") + "," +
+                    ((i & 2) ? "1.0" : "-0.85") + "," + ((i & 4) ? "2.7" : "2.3") + "]";
+    }
+    detections += "], \"class\": \"person\"}]}\n";
+  }
+};
+
+// The file source reports the frame's floor (report_floor, on by default) in frames with a box,
+// and the masker then keeps the floor keypoints at the person's feet static, which the box's
+// rectangle and depth range take in with the legs otherwise.
+TEST(FileSource, ReportsTheFloorSoThatKeypointsAtThePersonsFeetStayStatic) {
+  const PersonOnAFloor scene;
+  FrameInput f;
+  f.timestamp = 1.0;
+  f.depth = scene.depth;
+  ds3d::slam::FileSource with_floor(DetectionsFile::parse(scene.detections));
+  const DynamicObjects o = with_floor.detect(f, scene.cam);
+  ASSERT_EQ(o.boxes_3d.size(), 1U);
+  ASSERT_TRUE(o.support_plane.has_value());
+  EXPECT_NEAR(o.support_plane->head<3>().norm(), 1.0F, 1e-5F);
+  EXPECT_LT(o.support_plane->y(), -0.99F);         // normal up: camera -y
+  EXPECT_NEAR(o.support_plane->w(), 1.0F, 0.02F);  // camera height above the floor [m]
+  ds3d::slam::FileSource without(DetectionsFile::parse(scene.detections), {.report_floor = false});
+  const DynamicObjects o_off = without.detect(f, scene.cam);
+  EXPECT_FALSE(o_off.support_plane.has_value());
+  FrameInput no_box = f;
+  no_box.timestamp = 5.0;  // no detections line: no box, no floor
+  EXPECT_FALSE(with_floor.detect(no_box, scene.cam).support_plane.has_value());
+  FrameInput no_depth;
+  no_depth.timestamp = 1.0;
+  EXPECT_FALSE(with_floor.detect(no_depth, scene.cam).support_plane.has_value());
+
+  ds3d::slam::OrbFeatures feats = keypoint_grid();
+  const auto floor_at_feet = in_region(feats, 240, 400, 452, 479);
+  const auto on_person = in_region(feats, 275, 365, 150, 440);
+  ds3d::slam::HdbscanMasker masker;
+  const auto m_on = masker.mask(f, scene.cam, feats, o);
+  const auto m_off = masker.mask(f, scene.cam, feats, o_off);
+  const auto [person_on, person_n] = count_on(m_on, feats.size(), on_person);
+  EXPECT_GT(person_n, 100);
+  EXPECT_EQ(person_on, person_n);
+  EXPECT_EQ(count_on(m_off, feats.size(), on_person).first, person_n);
+  const auto [floor_on, floor_n] = count_on(m_on, feats.size(), floor_at_feet);
+  EXPECT_GT(floor_n, 20);
+  EXPECT_EQ(floor_on, 0) << "floor keypoints at the feet stay static with the floor";
+  EXPECT_GT(count_on(m_off, feats.size(), floor_at_feet).first, 5)
+      << "without the floor the box takes them with the legs";
+}
+
 // A person (slab at 1.5 m, u 250-310) with a chair at the same depth right beside it (u 311-420)
 // in front of a wall at 3 m: one 3-D box holds both, so the box filter's foreground cluster
 // takes the chair too. With the box flagged as segmented and the person's pixels as foreground

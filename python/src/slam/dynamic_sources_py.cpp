@@ -360,6 +360,9 @@ void bind_dynamic_sources(py::module_& m) {
                      "detections below this score are dropped, in [0, 1]")
       .def_readwrite("classes", &FileSourceParams::classes,
                      "class names treated as dynamic (list of str); empty = every class")
+      .def_readwrite("report_floor", &FileSourceParams::report_floor,
+                     "report the frame's floor (RANSAC on its depth) as the support plane in "
+                     "frames with boxes, so keypoints on it stay static (default True)")
       .def("validate", &FileSourceParams::validate, "Raises ValueError naming the bad field.");
 
   py::class_<FileSource, DynamicObjectSource, std::shared_ptr<FileSource>>(

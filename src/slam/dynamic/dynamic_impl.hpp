@@ -4,13 +4,18 @@
 // as when they were one file).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
+#include <optional>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include <opencv2/core.hpp>
 
 #include "ds3d/camera.hpp"
 #include "ds3d/cloud.hpp"
+#include "ds3d/preprocess/preprocess.hpp"
 
 namespace ds3d::slam::impl {
 
@@ -26,6 +31,21 @@ inline std::vector<std::uint32_t> finite_rows_of(const Points3f& pts) {
     if (pts.row(r).allFinite()) rows.push_back(static_cast<std::uint32_t>(r));
   }
   return rows;
+}
+
+// The normal of the floor preprocess found (camera frame, pointing up), when it can serve as the
+// floor. The preprocess prior keeps the floor normal within 30° of camera -y, so this holds;
+// checked anyway so that a custom prior cannot hand a ceiling or a wall on.
+inline std::optional<Eigen::Vector3d> usable_floor(const PreprocessResult& pre) {
+  if (!pre.ground_found) return std::nullopt;
+  const Eigen::Vector3d up = pre.ground_plane.head<3>();
+  if (up.allFinite() && up.y() < 0.0 && std::isfinite(pre.ground_plane.w())) return up;
+  return std::nullopt;
+}
+
+// The floor plane (n, d), n the unit normal `up` of usable_floor(pre), as the masker takes it.
+inline Eigen::Vector4f floor_plane(const PreprocessResult& pre, const Eigen::Vector3d& up) {
+  return (pre.ground_plane / up.norm()).cast<float>();
 }
 
 }  // namespace ds3d::slam::impl

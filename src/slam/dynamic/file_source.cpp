@@ -5,9 +5,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
 #include <utility>
 
 #include "ds3d/errors.hpp"
+#include "ds3d/preprocess/preprocess.hpp"
+#include "dynamic_impl.hpp"
 
 namespace ds3d::slam {
 
@@ -26,7 +31,27 @@ FileSource::FileSource(DetectionsFile detections, FileSourceParams params)
   params_.validate();
 }
 
-DynamicObjects FileSource::detect(const FrameInput& frame, const PinholeCamera& /*camera*/) {
+namespace {
+
+// The frame's floor (see FileSourceParams::report_floor), when its depth image shows one.
+std::optional<Eigen::Vector4f> frame_floor(const FrameInput& frame, const PinholeCamera& camera,
+                                           PixelRayCache& rays) {
+  if (!impl::camera_image(frame.depth, CV_16UC1, camera)) return std::nullopt;
+  PreprocessParams pp;
+  pp.remove_outliers = false;  // only the plane is wanted
+  pp.num_threads = 1;
+  if (pp.depth.undistort) pp.depth.rays = rays.get(camera);
+  const PreprocessResult pre =
+      preprocess(frame.depth.ptr<std::uint16_t>(), frame.depth.cols, frame.depth.rows,
+                 static_cast<std::ptrdiff_t>(frame.depth.step1()), camera, pp);
+  const std::optional<Eigen::Vector3d> up = impl::usable_floor(pre);
+  if (!up) return std::nullopt;
+  return impl::floor_plane(pre, *up);
+}
+
+}  // namespace
+
+DynamicObjects FileSource::detect(const FrameInput& frame, const PinholeCamera& camera) {
   DynamicObjects out;
   const DetectionFrame* f = file_.find(frame.timestamp, params_.max_dt);
   if (f == nullptr) {
@@ -47,6 +72,8 @@ DynamicObjects FileSource::detect(const FrameInput& frame, const PinholeCamera& 
       out.scores.push_back(d.score);
     }
   }
+  const bool any_box = !out.boxes_3d.empty() || !out.boxes_2d.empty();
+  if (params_.report_floor && any_box) out.support_plane = frame_floor(frame, camera, rays_);
   return out;
 }
 

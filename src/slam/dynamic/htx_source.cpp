@@ -198,25 +198,15 @@ bool depth_fits(const FrameInput& frame, const PinholeCamera& camera) {
          frame.depth.rows == camera.height;
 }
 
-// This frame's floor normal (camera frame, pointing up), when it can fix the upright frame.
-std::optional<Eigen::Vector3d> usable_floor(const PreprocessResult& pre) {
-  if (!pre.ground_found) return std::nullopt;
-  const Eigen::Vector3d up = pre.ground_plane.head<3>();
-  // The preprocess prior keeps the floor normal within 30° of camera -y, so this holds;
-  // checked anyway so that a custom prior cannot make upright_rotation throw mid-sequence.
-  if (up.allFinite() && up.y() < 0.0 && std::isfinite(pre.ground_plane.w())) return up;
-  return std::nullopt;
-}
-
 // The gravity-alignment stage: with this frame's floor, R_up_cam from its normal, and the floor
 // as the objects' segment_plane (`segment`) and support_plane (report_floor). Returns whether
 // the floor was used.
 bool align_with_floor(const PreprocessResult& pre, const HtxSourceParams& params, bool segment,
                       Eigen::Matrix3f& R_up_cam, DynamicObjects& objects) {
-  const std::optional<Eigen::Vector3d> up = usable_floor(pre);
+  const std::optional<Eigen::Vector3d> up = impl::usable_floor(pre);
   if (!up) return false;
   R_up_cam = upright_rotation(*up);
-  const Eigen::Vector4f ground = (pre.ground_plane / up->norm()).cast<float>();
+  const Eigen::Vector4f ground = impl::floor_plane(pre, *up);
   // The floor preprocess removed (camera frame): the segmentation gives it no label.
   if (segment) objects.segmentation.segment_plane = ground;
   // This frame's floor: the masker keeps the keypoints on it static.
@@ -280,7 +270,7 @@ std::shared_ptr<const PreparedDetection> HtxSource::prepare(const FrameInput& fr
   }
   const std::lock_guard<std::mutex> lock(prepare_mutex_);
   auto p = std::make_shared<Prepared>(preprocess_frame(frame, camera, prepare_rays_));
-  if (const std::optional<Eigen::Vector3d> up = usable_floor(p->pre)) {
+  if (const std::optional<Eigen::Vector3d> up = impl::usable_floor(p->pre)) {
     p->net = run_network(p->pre, upright_rotation(*up), frame.index);
   }
   return p;
