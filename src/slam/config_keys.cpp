@@ -347,6 +347,10 @@ std::vector<ConfigKey> filter_keys() {
           "gate.max_speed", [](auto& c) -> auto& { return c.gate_params.max_speed; },
           "[m/s] fastest object motion when associating a box with a track, >= 0"),
       key(
+          "gate.report_floor", [](auto& c) -> auto& { return c.gate_params.report_floor; },
+          "keypoints on the floor (the semantic source's, or the plane its segmentation left "
+          "out) stay static in every box"),
+      key(
           "filter.min_score", [](auto& c) -> auto& { return c.filter.min_score; },
           "boxes with a lower score are ignored, in [0, 1]"),
       key(

@@ -568,6 +568,18 @@ TEST(CompositeSource, BothSourcesSeeTheWholeFrame) {
     EXPECT_TRUE(g.segmentation.segment_plane.has_value());
     // Under the gate the segmentation decides inside the confirmed boxes only.
     EXPECT_FALSE(g.segmentation.segment_outside_boxes);
+    // The plane the segmentation left out (the floor) keeps its keypoints static in every gated
+    // box (gate.report_floor, on); a support plane of the semantic source comes first.
+    ASSERT_TRUE(g.support_plane.has_value());
+    EXPECT_FLOAT_EQ(g.support_plane->w(), 1.2F);
+    const DynamicObjects g_off =
+        ds3d::slam::MotionGatedSource(s, b, {.report_floor = false}).detect(f, {});
+    EXPECT_FALSE(g_off.support_plane.has_value());
+    s->out.support_plane = Eigen::Vector4f(0.0F, -1.0F, 0.0F, 1.4F);
+    const DynamicObjects g_own = ds3d::slam::MotionGatedSource(s, b).detect(f, {});
+    ASSERT_TRUE(g_own.support_plane.has_value());
+    EXPECT_FLOAT_EQ(g_own.support_plane->w(), 1.4F);
+    s->out.support_plane.reset();
     const DynamicObjects p = ds3d::slam::CompositeSource(b, b).detect(f, ds3d::PinholeCamera{});
     EXPECT_TRUE(p.segmentation.boxes_3d_segmented.empty());
     EXPECT_EQ(p.segmentation.foreground_points.rows(), 0);

@@ -408,8 +408,13 @@ DynamicObjects MotionGatedSource::detect_prepared(const FrameInput& frame,
   // Under the gate the segmentation decides inside the confirmed boxes only: outside them the
   // part head's foreground has no motion evidence (a seated person who does not move).
   out.segmentation.segment_outside_boxes = false;
-  // The semantic source's floor (the motion source usually has none to give).
-  out.support_plane = sem.support_plane ? sem.support_plane : out.support_plane;
+  // The semantic source's floor (the motion source usually has none to give); with
+  // report_floor also the floor the semantic source's segmentation left out.
+  if (sem.support_plane) {
+    out.support_plane = sem.support_plane;
+  } else if (params_.report_floor && sem.segmentation.segment_plane) {
+    out.support_plane = sem.segmentation.segment_plane;
+  }
   return out;
 }
 

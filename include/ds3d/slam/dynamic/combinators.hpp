@@ -76,6 +76,13 @@ struct MotionGateParams {
   /// Fastest object motion [m/s] when associating a box with a track, >= 0: the centres may lie
   /// apart by 3√2 · (box uncertainty) plus max_speed · Δt.
   double max_speed = 2.0;
+  /// Report the floor as the gated objects' support plane (key `gate.report_floor`), so that the
+  /// masker keeps the keypoints on it static in every box: the semantic source's support plane,
+  /// else the plane its segmentation left out (HtxSource: the floor its preprocessing found, at
+  /// no extra cost), else the motion source's. Off: the semantic source's support plane, else
+  /// the motion source's. On the crowd suite it helps both gates on every seed set; the same
+  /// floor in `A+B` does not (docs/stress.md).
+  bool report_floor = true;
   void validate() const;  ///< throws ds3d::InvalidArgument naming the bad field
 };
 
