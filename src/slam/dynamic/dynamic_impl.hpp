@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -16,6 +17,8 @@
 #include "ds3d/camera.hpp"
 #include "ds3d/cloud.hpp"
 #include "ds3d/preprocess/preprocess.hpp"
+#include "ds3d/preprocess/rgbd.hpp"
+#include "ds3d/slam/dynamic/objects.hpp"
 
 namespace ds3d::slam::impl {
 
@@ -31,6 +34,15 @@ inline std::vector<std::uint32_t> finite_rows_of(const Points3f& pts) {
     if (pts.row(r).allFinite()) rows.push_back(static_cast<std::uint32_t>(r));
   }
   return rows;
+}
+
+// preprocess() on the frame's 16-bit depth image (a cloud in the camera frame) with `pp`; the
+// per-pixel undistortion table comes from `rays`, built once per camera, not per frame.
+inline PreprocessResult preprocess_depth(const FrameInput& frame, const PinholeCamera& camera,
+                                         PreprocessParams pp, PixelRayCache& rays) {
+  if (pp.depth.undistort && pp.depth.rays == nullptr) pp.depth.rays = rays.get(camera);
+  return preprocess(frame.depth.ptr<std::uint16_t>(), frame.depth.cols, frame.depth.rows,
+                    static_cast<std::ptrdiff_t>(frame.depth.step1()), camera, pp);
 }
 
 // The normal of the floor preprocess found (camera frame, pointing up), when it can serve as the

@@ -5,13 +5,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstddef>
-#include <cstdint>
 #include <optional>
 #include <utility>
 
 #include "ds3d/errors.hpp"
-#include "ds3d/preprocess/preprocess.hpp"
 #include "dynamic_impl.hpp"
 
 namespace ds3d::slam {
@@ -40,10 +37,7 @@ std::optional<Eigen::Vector4f> frame_floor(const FrameInput& frame, const Pinhol
   PreprocessParams pp;
   pp.remove_outliers = false;  // only the plane is wanted
   pp.num_threads = 1;
-  if (pp.depth.undistort) pp.depth.rays = rays.get(camera);
-  const PreprocessResult pre =
-      preprocess(frame.depth.ptr<std::uint16_t>(), frame.depth.cols, frame.depth.rows,
-                 static_cast<std::ptrdiff_t>(frame.depth.step1()), camera, pp);
+  const PreprocessResult pre = impl::preprocess_depth(frame, camera, pp, rays);
   const std::optional<Eigen::Vector3d> up = impl::usable_floor(pre);
   if (!up) return std::nullopt;
   return impl::floor_plane(pre, *up);

@@ -186,10 +186,7 @@ PreprocessResult preprocess_depth(const FrameInput& frame, const PinholeCamera& 
                                   const HtxSourceParams& params, PixelRayCache& rays) {
   PreprocessParams pp = params.preprocess;
   pp.num_threads = params.num_threads;
-  // The per-pixel undistortion table is built once per camera, not per frame.
-  if (pp.depth.undistort && pp.depth.rays == nullptr) pp.depth.rays = rays.get(camera);
-  return preprocess(frame.depth.ptr<std::uint16_t>(), frame.depth.cols, frame.depth.rows,
-                    static_cast<std::ptrdiff_t>(frame.depth.step1()), camera, pp);
+  return impl::preprocess_depth(frame, camera, pp, rays);
 }
 
 // Whether the frame's depth image is one HtxSource can read: CV_16UC1 of the camera's size.
