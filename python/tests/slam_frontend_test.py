@@ -55,6 +55,11 @@ def test_refinement_options_are_exposed_and_validated():
     cfg.refine_rounds = -1
     with pytest.raises(ValueError, match="refine_rounds"):
         cfg.validate()
+    cfg = ds3d.FrontendConfig()
+    assert cfg.smooth_acceleration == 3.0
+    cfg.smooth_acceleration = -1.0
+    with pytest.raises(ValueError, match="smooth_acceleration must be >= 0"):
+        cfg.validate()
     # Without refinement the finished trajectory equals the online poses.
     cfg = ds3d.FrontendConfig()
     cfg.refine_frame_poses = False

@@ -99,6 +99,11 @@ std::vector<ConfigKey> frontend_keys() {
           "frontend.refine_rounds", [](auto& c) -> auto& { return c.frontend.refine_rounds; },
           "after that refinement: rounds of (move every map point using all"),
       key(
+          "frontend.smooth_acceleration",
+          [](auto& c) -> auto& { return c.frontend.smooth_acceleration; },
+          "[m/s^2] finish(): smooth the frame poses with this 1-sigma camera acceleration (0 = "
+          "off)"),
+      key(
           "frontend.cull_keyframes", [](auto& c) -> auto& { return c.frontend.cull_keyframes; },
           "remove redundant keyframes (ORB-SLAM2's KeyFrameCulling)"),
       key(

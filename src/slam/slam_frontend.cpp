@@ -2,9 +2,12 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 #include "ds3d/slam/slam_frontend.hpp"
 
+#include "ds3d/slam/pose_smoothing.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -64,6 +67,8 @@ void FrontendConfig::validate() const {
   DS3D_CHECK(std::isfinite(depth_edge_ratio) && depth_edge_ratio >= 0, f,
              ": depth_edge_ratio must be finite and >= 0 (got ", depth_edge_ratio, ")");
   DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");
+  DS3D_CHECK(std::isfinite(smooth_acceleration) && smooth_acceleration >= 0, f,
+             ": smooth_acceleration must be >= 0 (got ", smooth_acceleration, ")");
   DS3D_CHECK(std::isfinite(keyframe_ref_ratio) && keyframe_ref_ratio > 0 && keyframe_ref_ratio <= 1,
              f, ": keyframe_ref_ratio must be in (0, 1] (got ", keyframe_ref_ratio, ")");
   DS3D_CHECK(std::isfinite(keyframe_redundancy_ratio) && keyframe_redundancy_ratio > 0 &&
@@ -121,6 +126,60 @@ void SlamFrontend::Impl::refine_frame_poses(const PoseOptimizerParams& params) {
     if (opt.num_inliers >= cfg.min_tracked_inliers && opt.T_cam_world.matrix().allFinite()) {
       r.T_c_ref = opt.T_cam_world * T_rw.inverse();
     }
+  }
+}
+
+// FrontendConfig::smooth_acceleration: every tracked frame, keyframes included, smoothed against
+// the final map points it was matched to (the matches that pass the χ² test at its refined pose).
+// Only the frame trajectory moves: the keyframes' own poses (keyframe_trajectory()) stay as BA
+// left them.
+void SlamFrontend::Impl::smooth_frame_poses() {
+  std::map<std::size_t, int> kf_of_frame;
+  for (const Keyframe& K : keyframes) {
+    if (!K.bad) kf_of_frame[K.frame_index] = K.id;
+  }
+  std::vector<SmoothingFrame> frames;
+  frames.reserve(records.size());
+  std::vector<std::size_t> rec;
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    const FrameRecord& r = records[i];
+    SmoothingFrame s;
+    s.timestamp = r.timestamp;
+    s.valid = r.tracked && r.ref_kf >= 0;
+    if (s.valid) s.T_cam_world = r.T_c_ref * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw;
+    if (!frames.empty() && !(s.timestamp > frames.back().timestamp)) continue;
+    const auto add = [&](int pid, const Observation& o) {
+      const MapPoint& p = points[static_cast<std::size_t>(pid)];
+      if (p.bad) return;
+      bool front = false;
+      const double chi2 = reprojection_chi2(k, s.T_cam_world, p.pos, o, &front);
+      if (!front || chi2 > (o.stereo() ? cfg.pose.chi2_stereo : cfg.pose.chi2_mono)) return;
+      s.points.push_back(p.pos);
+      s.observations.push_back(o);
+    };
+    if (s.valid && r.keyframe) {  // a live keyframe's frame: the keyframe's own observations
+      const auto kf = kf_of_frame.find(r.index);
+      if (kf != kf_of_frame.end()) {
+        const FrameData& d = keyframes[static_cast<std::size_t>(kf->second)].data;
+        for (std::size_t j = 0; j < d.size(); ++j) {
+          if (d.points[j] >= 0) add(d.points[j], observation(d, j));
+        }
+      }
+    } else if (s.valid) {
+      for (const auto& [pid, o] : r.matches) add(pid, o);
+    }
+    frames.push_back(std::move(s));
+    rec.push_back(i);
+  }
+  PoseSmoothingParams params;
+  params.acceleration_sigma = cfg.smooth_acceleration;
+  params.chi2_mono = cfg.pose.chi2_mono;
+  params.chi2_stereo = cfg.pose.chi2_stereo;
+  const std::vector<Eigen::Isometry3d> T = smooth_poses(k, frames, params);
+  for (std::size_t j = 0; j < frames.size(); ++j) {
+    FrameRecord& r = records[rec[j]];
+    if (!frames[j].valid) continue;
+    r.T_c_ref = T[j] * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw.inverse();
   }
 }
 
@@ -307,6 +366,7 @@ void SlamFrontend::finish() {
       impl_->refine_points_from_frames();
       impl_->refine_frame_poses(again);
     }
+    if (impl_->cfg.smooth_acceleration > 0) impl_->smooth_frame_poses();
     for (auto& r : impl_->records) {
       r.matches.clear();
       r.matches.shrink_to_fit();

@@ -339,6 +339,7 @@ struct SlamFrontend::Impl {
   // ---- slam_frontend.cpp: finish()'s refinement
   void refine_frame_poses(const PoseOptimizerParams& params);
   void refine_points_from_frames();
+  void smooth_frame_poses();
 };
 
 }  // namespace ds3d::slam

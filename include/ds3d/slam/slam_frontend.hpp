@@ -137,6 +137,11 @@ struct FrontendConfig {
   bool refine_frame_poses = true;
   int refine_rounds = 2;  ///< after that refinement: rounds of (move every map point using all
                           ///< frames' matches, poses fixed; refine the frames again), >= 0
+  /// [m/s²] After that refinement, finish() smooths the poses of all tracked frames (keyframes'
+  /// frames included; keyframe_trajectory() keeps BA's) against the final map with this 1-σ of
+  /// the camera's acceleration (smooth_poses(), pose_smoothing.hpp); 0 = off. A hand-held or
+  /// robot-borne camera accelerates by a few m/s². Needs refine_frame_poses. >= 0.
+  double smooth_acceleration = 3.0;
   /// Keyframe culling (local keyframe culling of ORB-SLAM, Mur-Artal, Montiel & Tardós 2015,
   /// §VI-E, as ORB-SLAM2's LocalMapping::KeyFrameCulling): after each local BA is applied, a
   /// covisible neighbour of the keyframe that launched it is removed when more than

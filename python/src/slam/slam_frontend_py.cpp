@@ -414,6 +414,7 @@ void bind_slam_frontend(py::module_& m) {
       .def_readwrite("keyframe_ref_ratio", &FrontendConfig::keyframe_ref_ratio)
       .def_readwrite("refine_frame_poses", &FrontendConfig::refine_frame_poses)
       .def_readwrite("refine_rounds", &FrontendConfig::refine_rounds)
+      .def_readwrite("smooth_acceleration", &FrontendConfig::smooth_acceleration)
       .def_readwrite("cull_keyframes", &FrontendConfig::cull_keyframes)
       .def_readwrite("keyframe_redundancy_ratio", &FrontendConfig::keyframe_redundancy_ratio)
       .def_readwrite("keyframe_redundant_observers", &FrontendConfig::keyframe_redundant_observers)
