@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <map>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -134,10 +133,6 @@ void SlamFrontend::Impl::refine_frame_poses(const PoseOptimizerParams& params) {
 // Only the frame trajectory moves: the keyframes' own poses (keyframe_trajectory()) stay as BA
 // left them.
 void SlamFrontend::Impl::smooth_frame_poses() {
-  std::map<std::size_t, int> kf_of_frame;
-  for (const Keyframe& K : keyframes) {
-    if (!K.bad) kf_of_frame[K.frame_index] = K.id;
-  }
   std::vector<SmoothingFrame> frames;
   frames.reserve(records.size());
   std::vector<std::size_t> rec;
@@ -157,13 +152,11 @@ void SlamFrontend::Impl::smooth_frame_poses() {
       s.points.push_back(p.pos);
       s.observations.push_back(o);
     };
-    if (s.valid && r.keyframe) {  // a live keyframe's frame: the keyframe's own observations
-      const auto kf = kf_of_frame.find(r.index);
-      if (kf != kf_of_frame.end()) {
-        const FrameData& d = keyframes[static_cast<std::size_t>(kf->second)].data;
-        for (std::size_t j = 0; j < d.size(); ++j) {
-          if (d.points[j] >= 0) add(d.points[j], observation(d, j));
-        }
+    if (s.valid && r.keyframe) {
+      // A live keyframe's own frame (its ref_kf is itself): the keyframe's observations.
+      const FrameData& d = keyframes[static_cast<std::size_t>(r.ref_kf)].data;
+      for (std::size_t j = 0; j < d.size(); ++j) {
+        if (d.points[j] >= 0) add(d.points[j], observation(d, j));
       }
     } else if (s.valid) {
       for (const auto& [pid, o] : r.matches) add(pid, o);
