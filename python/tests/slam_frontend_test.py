@@ -60,6 +60,8 @@ def test_refinement_options_are_exposed_and_validated():
     cfg.smooth_acceleration = -1.0
     with pytest.raises(ValueError, match="smooth_acceleration must be >= 0"):
         cfg.validate()
+    cfg = ds3d.FrontendConfig()
+    assert cfg.merge_segments is True and cfg.interpolate_lost is True
     # Without refinement the finished trajectory equals the online poses.
     cfg = ds3d.FrontendConfig()
     cfg.refine_frame_poses = False
@@ -70,6 +72,7 @@ def test_refinement_options_are_exposed_and_validated():
     depth = np.full(rgb.shape[:2], 10000, np.uint16)
     online = [slam.track(rgb, depth, 0.1 * i) for i in range(4)]
     slam.finish()
+    assert slam.merged_segments == 0 and slam.interpolated_frames == 0
     traj = slam.trajectory()
     assert np.allclose(traj[:, 1:4], [p[:3, 3] for p in online], atol=1e-9)
 

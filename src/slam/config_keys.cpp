@@ -55,6 +55,13 @@ std::vector<ConfigKey> frontend_keys() {
           [](auto& c) -> auto& { return c.frontend.reanchor_after_lost; },
           "consecutive lost frames after which a new map segment starts"),
       key(
+          "frontend.merge_segments", [](auto& c) -> auto& { return c.frontend.merge_segments; },
+          "finish(): move each re-anchored map segment back onto the earlier map where it "
+          "relocalises there"),
+      key(
+          "frontend.interpolate_lost", [](auto& c) -> auto& { return c.frontend.interpolate_lost; },
+          "finish(): lost frames the map continues after get poses interpolated in time"),
+      key(
           "frontend.recover_by_projection",
           [](auto& c) -> auto& { return c.frontend.recover_by_projection; },
           "after a lost frame, the last pose's local map by projection before relocalisation"),

@@ -332,6 +332,7 @@ Trajectory to_trajectory(const std::vector<FramePose>& poses) {
 
 void SlamFrontend::finish() {
   impl_->apply_ba_if_due(true);
+  impl_->merge_segments();
   if (impl_->cfg.final_global_ba && impl_->live_keyframes >= 2) {
     // Global BA over every keyframe and point, first keyframe fixed (the world frame).
     std::vector<int> local;
@@ -366,6 +367,7 @@ void SlamFrontend::finish() {
     }
     impl_->refine_ms += thread_cpu_ms() - c0;
   }
+  if (impl_->cfg.interpolate_lost) impl_->interpolate_lost_frames();
 }
 
 std::vector<FramePose> SlamFrontend::trajectory() const {
@@ -420,6 +422,10 @@ void SlamFrontend::write_map_ply(const std::filesystem::path& path) const {
 
 const FrontendConfig& SlamFrontend::config() const noexcept { return impl_->cfg; }
 std::size_t SlamFrontend::num_keyframes() const noexcept { return impl_->live_keyframes; }
+int SlamFrontend::merged_segments() const noexcept { return impl_->num_merged_segments; }
+
+int SlamFrontend::interpolated_frames() const noexcept { return impl_->num_interpolated_frames; }
+
 const std::vector<CulledKeyframe>& SlamFrontend::culled_keyframes() const noexcept {
   return impl_->culled;
 }

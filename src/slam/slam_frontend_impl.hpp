@@ -235,6 +235,10 @@ struct SlamFrontend::Impl {
   int last_kf_frame = 0;  // frame_counter at the last keyframe
   int lost_count = 0;
   int segment_first_kf = 0;  // first keyframe of the current map segment (re-anchoring starts one)
+  std::vector<int> segment_starts;  // first keyframe of each segment a re-anchoring started
+  std::vector<int> segment_group;   // finish(): per segment, the segment whose world it is in
+  int num_merged_segments = 0;
+  int num_interpolated_frames = 0;
   bool just_relocalized = false;
 
   // Trajectory: per frame, pose relative to its reference keyframe.
@@ -297,6 +301,7 @@ struct SlamFrontend::Impl {
   int optimize_frame(FrameData& f, Eigen::Isometry3d& T_cw) const;
   bool pnp_ransac(const FrameData& f, Eigen::Isometry3d& T_cw) const;
   void forget_seen(const std::vector<int>& cand);
+  void clear_frame_marks();
   int search_widening(FrameData& f, const Eigen::Isometry3d& T_cw, const std::vector<int>& cand);
   bool track_motion_model(FrameData& f, Eigen::Isometry3d& T_cw);
   bool track_keyframe(const Keyframe& kf, FrameData& f, Eigen::Isometry3d& T_cw, int min_inliers);
@@ -335,6 +340,16 @@ struct SlamFrontend::Impl {
   [[nodiscard]] std::pair<int, int> redundancy(int id) const;
   void cull_keyframes(int current);
   void remove_keyframe(int id, int close, int redundant);
+
+  // ---- segments.cpp: finish()'s merging of re-anchored segments and lost frames' poses
+  [[nodiscard]] int segment_of(int kf) const;
+  [[nodiscard]] int group_of(int kf) const;
+  int localise_in_other_segments(const Keyframe& K, Eigen::Isometry3d& T_cw);
+  void move_group(int group, const Eigen::Isometry3d& W, int into);
+  [[nodiscard]] Eigen::Isometry3d record_pose(const FrameRecord& r) const;
+  void merge_segments();
+  void interpolate_records(std::size_t i, std::size_t b);
+  void interpolate_lost_frames();
 
   // ---- slam_frontend.cpp: finish()'s refinement
   void refine_frame_poses(const PoseOptimizerParams& params);

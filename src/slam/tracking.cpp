@@ -216,6 +216,16 @@ void SlamFrontend::Impl::forget_seen(const std::vector<int>& cand) {
     points[static_cast<std::size_t>(pid)].last_frame_seen = std::numeric_limits<std::size_t>::max();
 }
 
+// Clears every map point's "seen / searched in this frame" marks (frame_counter), so that another
+// attempt on the same frame searches them again.
+void SlamFrontend::Impl::clear_frame_marks() {
+  for (auto& p : points) {
+    if (p.last_frame_seen == frame_counter)
+      p.last_frame_seen = std::numeric_limits<std::size_t>::max();
+    if (p.local_stamp == frame_counter) p.local_stamp = std::numeric_limits<std::size_t>::max();
+  }
+}
+
 // Matches `cand` into the frame at T_cw by projection (f.points reset first), in a window of 15 px
 // × level scale, or 30 px when fewer than 20 match (ORB-SLAM2's motion-model windows for
 // monocular and RGB-D input). Returns the matches.
@@ -369,11 +379,7 @@ bool SlamFrontend::Impl::plausible(const Eigen::Isometry3d& T_cw, const Eigen::I
 bool SlamFrontend::Impl::track_from_prediction(FrameData& f, Eigen::Isometry3d& T_cw,
                                                const Eigen::Isometry3d& pred, double dt,
                                                int& inliers) {
-  for (auto& p : points) {  // undo the first attempt's "seen in this frame" marks
-    if (p.last_frame_seen == frame_counter)
-      p.last_frame_seen = std::numeric_limits<std::size_t>::max();
-    if (p.local_stamp == frame_counter) p.local_stamp = std::numeric_limits<std::size_t>::max();
-  }
+  clear_frame_marks();  // undo the first attempt's "seen in this frame" marks
   std::vector<int> cand;
   for (const int pid : last.points) {
     if (pid >= 0) cand.push_back(pid);
@@ -554,6 +560,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
         const int id = add_keyframe(f, T_cw, in);
         f = keyframes[static_cast<std::size_t>(id)].data;
         segment_first_kf = id;
+        segment_starts.push_back(id);
         res.state = TrackState::kReanchored;
         lost_count = 0;
         new_kf = true;

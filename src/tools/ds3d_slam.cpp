@@ -411,6 +411,8 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
      << "  \"relocalized_frames\": " << relocalized << ",\n"
      << "  \"keyframes\": " << slam.num_keyframes() << ",\n"
      << "  \"culled_keyframes\": " << slam.culled_keyframes().size() << ",\n"
+     << "  \"merged_segments\": " << slam.merged_segments() << ",\n"
+     << "  \"interpolated_frames\": " << slam.interpolated_frames() << ",\n"
      << "  \"map_points\": " << slam.map_points().rows() << ",\n"
      << "  \"threaded\": " << (c.pipeline.threaded ? "true" : "false") << ",\n"
      << "  \"realtime\": " << (a.realtime ? "true" : "false") << ",\n"

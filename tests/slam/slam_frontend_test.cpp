@@ -52,6 +52,8 @@ struct SlamRun {
   double ate = 0;
   std::vector<std::size_t> keyframe_frames;  // input frame of each live keyframe
   std::vector<ds3d::slam::CulledKeyframe> culled;
+  int merged_segments = 0;
+  int interpolated_frames = 0;
 };
 
 SlamRun run(const std::vector<ds3d::synth::SynthFrame>& frames, FrontendConfig cfg, bool threaded,
@@ -78,6 +80,8 @@ SlamRun run(const std::vector<ds3d::synth::SynthFrame>& frames, FrontendConfig c
   for (const auto& kf : slam.keyframe_trajectory()) r.keyframe_frames.push_back(kf.index);
   EXPECT_EQ(r.keyframe_frames.size(), slam.num_keyframes());
   r.culled = slam.culled_keyframes();
+  r.merged_segments = slam.merged_segments();
+  r.interpolated_frames = slam.interpolated_frames();
   return r;
 }
 
@@ -553,6 +557,9 @@ TEST(SlamFrontend, RecoversAgainstTheMapAroundTheLastPoseAfterALostFrame) {
   const auto frames = ds3d::test::render_sequence(ds3d::synth::Scenario::kCrowdCross, 120, 6, 40);
   FrontendConfig cfg = synth_config();
   EXPECT_TRUE(cfg.recover_by_projection);  // on by default
+  // The recovery alone: finish()'s segment merging would mend the re-anchored run as well.
+  cfg.merge_segments = false;
+  cfg.interpolate_lost = false;
   const auto source = std::make_shared<SilentSource>();
   const SlamRun on = run(frames, cfg, false, std::make_shared<TruthMasker>(frames), source);
   cfg.recover_by_projection = false;
@@ -577,6 +584,80 @@ TEST(SlamFrontend, RecoversAgainstTheMapAroundTheLastPoseAfterALostFrame) {
   }
   EXPECT_LE(on.ate, 0.015);
   EXPECT_LT(on.ate, off.ate);
+}
+
+// A carried board and its carrier cover most of the view of crowd_board seed 4 for 20 frames:
+// even with perfect masks the front-end is lost twice and re-anchors new map segments at frozen
+// poses. finish() moves the segment that sees the first map again back onto it, and puts the lost
+// frames (and the short segment that never relocalised) between the poses around them.
+TEST(SlamFrontend, MergesReanchoredSegmentsAndInterpolatesLostFrames) {
+  const auto frames = ds3d::test::render_sequence(ds3d::synth::Scenario::kCrowdBoard, 120, 4);
+  FrontendConfig cfg = synth_config();
+  EXPECT_TRUE(cfg.merge_segments && cfg.interpolate_lost);  // on by default
+  const auto source = std::make_shared<SilentSource>();
+  const SlamRun on = run(frames, cfg, false, std::make_shared<TruthMasker>(frames), source);
+  cfg.merge_segments = false;
+  cfg.interpolate_lost = false;
+  const SlamRun off = run(frames, cfg, false, std::make_shared<TruthMasker>(frames), source);
+  std::cout << "crowd_board seed 4, perfect masks: ATE " << off.ate << " m without, " << on.ate
+            << " m with " << on.merged_segments << " merged segments and " << on.interpolated_frames
+            << " interpolated frames\n";
+  // Tracking is the same: both steps run in finish().
+  ASSERT_EQ(on.results.size(), off.results.size());
+  int reanchored = 0;
+  for (std::size_t i = 0; i < on.results.size(); ++i) {
+    EXPECT_EQ(on.results[i].state, off.results[i].state) << "frame " << i;
+    EXPECT_TRUE(on.results[i].T_world_cam.isApprox(off.results[i].T_world_cam)) << "frame " << i;
+    reanchored += on.results[i].state == TrackState::kReanchored ? 1 : 0;
+  }
+  EXPECT_GE(reanchored, 1);  // the case arises
+  EXPECT_EQ(off.merged_segments, 0);
+  EXPECT_EQ(off.interpolated_frames, 0);
+  EXPECT_GE(on.merged_segments, 1);
+  EXPECT_GE(on.interpolated_frames, 10);
+  EXPECT_LT(on.ate, 0.7 * off.ate);
+  // An interpolated stretch moves: no two consecutive lost frames keep one frozen pose.
+  for (std::size_t i = 1; i < on.results.size(); ++i) {
+    if (on.results[i].state != TrackState::kLost || on.results[i - 1].state != TrackState::kLost)
+      continue;
+    const Eigen::Vector3d a = on.trajectory[i - 1].T_world_cam.translation();
+    const Eigen::Vector3d b = on.trajectory[i].T_world_cam.translation();
+    EXPECT_GT((b - a).norm(), 1e-6) << "frame " << i;
+  }
+}
+
+// Three black frames are lost; tracking comes back in the same map after them, so finish() gives
+// them poses between the frames around them instead of the last known pose.
+TEST(SlamFrontend, LostFramesBetweenTrackedOnesAreInterpolated) {
+  auto frames = render(ds3d::synth::Scenario::kStaticRoom, 50, 5);
+  for (std::size_t i = 30; i < 33; ++i)
+    frames[i].rgb = cv::Mat::zeros(frames[i].rgb.size(), frames[i].rgb.type());
+  FrontendConfig cfg = synth_config();
+  const SlamRun on = run(frames, cfg, false);
+  cfg.interpolate_lost = false;
+  const SlamRun off = run(frames, cfg, false);
+  for (std::size_t i = 30; i < 33; ++i) ASSERT_EQ(on.results[i].state, TrackState::kLost);
+  ASSERT_TRUE(on.results[33].tracked);
+  EXPECT_EQ(on.interpolated_frames, 3);
+  EXPECT_EQ(off.interpolated_frames, 0);
+  // Position relative to the last tracked frame, against the ground truth's (no alignment).
+  const auto rel = [&frames](const SlamRun& r, std::size_t i) {
+    const Eigen::Isometry3d est =
+        r.trajectory[29].T_world_cam.inverse() * r.trajectory[i].T_world_cam;
+    const Eigen::Isometry3d gt = frames[29].T_world_cam.inverse() * frames[i].T_world_cam;
+    return (est.translation() - gt.translation()).norm();
+  };
+  double err_on = 0;
+  double err_off = 0;
+  for (std::size_t i = 30; i < 33; ++i) {
+    err_on = std::max(err_on, rel(on, i));
+    err_off = std::max(err_off, rel(off, i));
+    // Frozen without: one pose for the whole stretch.
+    EXPECT_TRUE(off.trajectory[i].T_world_cam.isApprox(off.trajectory[30].T_world_cam, 1e-12));
+  }
+  std::cout << "largest error of the 3 lost frames relative to the last tracked one: " << err_off
+            << " m frozen, " << err_on << " m interpolated\n";
+  EXPECT_LT(err_on, 0.5 * err_off);
 }
 
 TEST(SlamFrontend, MasksOfTheWrongSizeAreAnError) {

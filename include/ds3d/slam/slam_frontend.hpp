@@ -82,6 +82,18 @@ struct FrontendConfig {
   bool recover_by_projection = true;
   int reanchor_after_lost = 10;  ///< consecutive lost frames after which a new map segment starts
                                  ///< at the last pose (0 = never), >= 0
+  /// finish(): each map segment that a re-anchoring started is localised against the earlier
+  /// segments' map, one of its keyframes at a time in order (descriptor matching against one
+  /// earlier keyframe, then the local map, with relocalisation's 50 inliers), and on success
+  /// moved rigidly onto it, with every later segment. A re-anchoring starts at the last known
+  /// pose, displaced by the motion during the outage; this undoes that offset once the camera
+  /// sees the earlier map again.
+  bool merge_segments = true;
+  /// finish(): the frames of a lost stretch that the map continues after (the next frame tracked
+  /// or relocalised in the same map, or a re-anchored segment merged back) get poses interpolated
+  /// in time between the frames around the stretch (linear in the camera centre, slerp in
+  /// rotation) instead of the last known pose. They stay reported as not tracked.
+  bool interpolate_lost = true;
   /// Spare ORB candidates kept per frame (the ones the even spread would pick next, with
   /// descriptors) to replace keypoints the dynamic filter removes, >= 0 (0 = off). In a frame
   /// where people cover much of the image most of the feature budget lands on them; the
@@ -298,10 +310,12 @@ class SlamFrontend {
   TrackResult track_prepared(PreparedFrame frame);
 
   /// Waits for the mapping thread and applies any pending local BA, then (if
+  /// config.merge_segments) moves re-anchored map segments back onto the earlier map, then (if
   /// config.final_global_ba) a global BA over all keyframes, then (if config.refine_frame_poses)
-  /// re-optimises each tracked non-keyframe pose against the final map. Call after the last frame;
-  /// trajectory() reflects it. @note O(keyframes · points) for the global BA (about a second for
-  /// 400 frames) plus one pose-only optimisation per frame (a few ms each).
+  /// re-optimises each tracked non-keyframe pose against the final map and smooths them, then (if
+  /// config.interpolate_lost) interpolates the lost frames the map continues after. Call after the
+  /// last frame; trajectory() reflects it. @note O(keyframes · points) for the global BA (about a
+  /// second for 400 frames) plus one pose-only optimisation per frame (a few ms each).
   void finish();
 
   /// One pose per tracked-or-not input frame, in input order. Each frame's pose is stored relative
@@ -323,6 +337,12 @@ class SlamFrontend {
   /// Keyframes removed by keyframe culling so far, in removal order (see
   /// FrontendConfig::cull_keyframes).
   [[nodiscard]] const std::vector<CulledKeyframe>& culled_keyframes() const noexcept;
+  /// Re-anchored map segments that finish() moved back onto another segment's map (see
+  /// FrontendConfig::merge_segments); 0 before finish().
+  [[nodiscard]] int merged_segments() const noexcept;
+  /// Frames whose pose finish() interpolated (see FrontendConfig::interpolate_lost); 0 before
+  /// finish().
+  [[nodiscard]] int interpolated_frames() const noexcept;
   /// Local BAs run so far, and their total thread CPU time [ms] (measured in the mapping thread).
   [[nodiscard]] std::size_t num_local_ba() const noexcept;
   /// Total thread CPU time of the local BAs so far [ms] (see num_local_ba()).

@@ -347,6 +347,13 @@ void bind_slam_class(py::module_& m) {
           "num_culled_keyframes", [](PySlam& s) { return s.slam().culled_keyframes().size(); },
           "Keyframes removed by keyframe culling (FrontendConfig.cull_keyframes) so far.")
       .def_property_readonly(
+          "merged_segments", [](PySlam& s) { return s.slam().merged_segments(); },
+          "Re-anchored map segments finish() moved back onto another segment's map "
+          "(FrontendConfig.merge_segments).")
+      .def_property_readonly(
+          "interpolated_frames", [](PySlam& s) { return s.slam().interpolated_frames(); },
+          "Frames whose pose finish() interpolated (FrontendConfig.interpolate_lost).")
+      .def_property_readonly(
           "camera", [](PySlam& s) { return s.slam().config().camera; },
           "The ds3d.Camera of the front-end.");
 }
@@ -415,6 +422,8 @@ void bind_slam_frontend(py::module_& m) {
       .def_readwrite("refine_frame_poses", &FrontendConfig::refine_frame_poses)
       .def_readwrite("refine_rounds", &FrontendConfig::refine_rounds)
       .def_readwrite("smooth_acceleration", &FrontendConfig::smooth_acceleration)
+      .def_readwrite("merge_segments", &FrontendConfig::merge_segments)
+      .def_readwrite("interpolate_lost", &FrontendConfig::interpolate_lost)
       .def_readwrite("cull_keyframes", &FrontendConfig::cull_keyframes)
       .def_readwrite("keyframe_redundancy_ratio", &FrontendConfig::keyframe_redundancy_ratio)
       .def_readwrite("keyframe_redundant_observers", &FrontendConfig::keyframe_redundant_observers)
