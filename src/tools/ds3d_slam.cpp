@@ -449,6 +449,10 @@ std::string report_run(const Args& a, const ds3d::slam::SlamFrontend& slam,
               << slam.map_points().rows() << ", " << static_cast<double>(results.size()) / wall_s
               << " fps (median " << fps_p.median << ")";
     if (a.realtime) std::cout << ", input lag p95 " << percentiles(lag_ms).p95 << " ms";
+    if (slam.merged_segments() > 0 || slam.interpolated_frames() > 0) {
+      std::cout << ", re-anchored segments merged " << slam.merged_segments()
+                << ", lost frames interpolated " << slam.interpolated_frames();
+    }
     std::cout << "\n";
   }
   return js.str();

@@ -245,6 +245,9 @@ TEST_F(Ds3dSlamCli, WarnsAboutDuplicateStampsGapsAndUnmatchedDetections) {
   EXPECT_EQ(w.at("large_gaps").as_number(), 1.0);
   EXPECT_EQ(w.at("frames_without_detections").as_number(), 6.0);
   EXPECT_FALSE(stats.at("stopped_early").as_bool());
+  // finish()'s counters are reported.
+  EXPECT_GE(stats.at("merged_segments").as_number(), 0.0);
+  EXPECT_GE(stats.at("interpolated_frames").as_number(), 0.0);
   // Frame-in to pose-out latency, and the source's stages (wall and thread CPU).
   const auto& latency = stats.at("latency");
   EXPECT_GT(latency.at("median_ms").as_number(), 0.0);
