@@ -82,17 +82,20 @@ struct FrontendConfig {
   bool recover_by_projection = true;
   int reanchor_after_lost = 10;  ///< consecutive lost frames after which a new map segment starts
                                  ///< at the last pose (0 = never), >= 0
-  /// finish(): each map segment that a re-anchoring started is localised against the earlier
-  /// segments' map, one of its keyframes at a time in order (descriptor matching against one
-  /// earlier keyframe, then the local map, with relocalisation's 50 inliers), and on success
-  /// moved rigidly onto it, with every later segment. A re-anchoring starts at the last known
-  /// pose, displaced by the motion during the outage; this undoes that offset once the camera
-  /// sees the earlier map again.
+  /// finish(): each map segment that a re-anchoring started and that is not yet in the first
+  /// map's world is relocalised against the keyframes of the other segments, one of its
+  /// keyframes at a time in order (nearest keyframes in time first, up to
+  /// relocalisation_candidates; descriptor matching against one keyframe, then its local map,
+  /// with relocalisation's 50 inliers); on success the segment, with any segment already merged
+  /// into it, moves rigidly (keyframes and the map points they made) into that keyframe's world.
+  /// A re-anchoring starts at the last known pose, displaced by the motion during the outage;
+  /// this undoes that offset once the camera sees the earlier map again. Online poses
+  /// (TrackResult) are not changed.
   bool merge_segments = true;
-  /// finish(): the frames of a lost stretch that the map continues after (the next frame tracked
-  /// or relocalised in the same map, or a re-anchored segment merged back) get poses interpolated
-  /// in time between the frames around the stretch (linear in the camera centre, slerp in
-  /// rotation) instead of the last known pose. They stay reported as not tracked.
+  /// finish(): a break in a map's frames (frames that are lost, or placed in a segment that
+  /// never merged and appears only inside the break) between two frames of the same map world
+  /// gets poses interpolated in time between those two frames (linear in the camera centre,
+  /// slerp in rotation) instead of the last known pose. The frames keep their tracked flag.
   bool interpolate_lost = true;
   /// Spare ORB candidates kept per frame (the ones the even spread would pick next, with
   /// descriptors) to replace keypoints the dynamic filter removes, >= 0 (0 = off). In a frame
@@ -177,7 +180,8 @@ enum class TrackState : std::uint8_t {
   kInitialized,     ///< this frame created the first keyframe
   kTracking,        ///< tracked against the map
   kRelocalized,     ///< recovered by relocalisation
-  kLost,            ///< not tracked: the reported pose is the last known one
+  kLost,            ///< not tracked: the reported pose is the last known one (trajectory()
+                    ///< after finish() may interpolate it: FrontendConfig::interpolate_lost)
   kReanchored,      ///< lost too long: a new map segment starts at the last known pose
 };
 /// Lower-case name of a TrackState ("tracking", "lost", ...).
