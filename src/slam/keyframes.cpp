@@ -18,6 +18,7 @@ bool SlamFrontend::Impl::need_keyframe(const FrameData& f, int inliers) const {
   // Keyframes of the current map segment: after a re-anchoring the new segment starts like a
   // new map (ORB-SLAM2's thresholds for a map of one or two keyframes), else its first
   // keyframe's points, seen once, never count and no keyframe would follow it.
+  const int segment_first_kf = segment_starts.empty() ? 0 : segment_starts.back();
   const int n_kf = std::min(static_cast<int>(live_keyframes),
                             static_cast<int>(keyframes.size()) - segment_first_kf);
   const int min_obs = n_kf <= 2 ? 2 : 3;

@@ -109,13 +109,6 @@ void SlamFrontend::Impl::merge_segments() {
   }
 }
 
-// A record's pose in the world: relative to its reference keyframe where it has one.
-Eigen::Isometry3d SlamFrontend::Impl::record_pose(const FrameRecord& r) const {
-  return r.ref_kf >= 0
-             ? Eigen::Isometry3d(r.T_c_ref * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw)
-             : r.T_cw_online;
-}
-
 // Records i .. b − 1 placed between records i − 1 and b: the camera centre linear in time, the
 // rotation slerped.
 void SlamFrontend::Impl::interpolate_records(std::size_t i, std::size_t b) {
@@ -161,16 +154,12 @@ void SlamFrontend::Impl::interpolate_lost_frames() {
       continue;
     }
     std::size_t b = i;
-    bool confined = true;
-    while (b < n && g[b] != g[i - 1]) {
-      if (g[b] >= 0) {
-        const auto u = static_cast<std::size_t>(g[b]);
-        confined = confined && first_rec[u] >= i;
-      }
-      ++b;
-    }
-    for (std::size_t j = i; j < b && confined; ++j) {
-      if (g[j] >= 0) confined = last_rec[static_cast<std::size_t>(g[j])] < b;
+    while (b < n && g[b] != g[i - 1]) ++b;
+    bool confined = true;  // every group placed inside the break appears nowhere else
+    for (std::size_t j = i; j < b; ++j) {
+      if (g[j] < 0) continue;
+      const auto u = static_cast<std::size_t>(g[j]);
+      confined = confined && first_rec[u] >= i && last_rec[u] < b;
     }
     if (b < n && confined && records[b].timestamp > records[i - 1].timestamp) {
       interpolate_records(i, b);

@@ -128,6 +128,13 @@ void SlamFrontend::Impl::refine_frame_poses(const PoseOptimizerParams& params) {
   }
 }
 
+// A record's pose in the world: relative to its reference keyframe where it has one.
+Eigen::Isometry3d SlamFrontend::Impl::record_pose(const FrameRecord& r) const {
+  return r.ref_kf >= 0
+             ? Eigen::Isometry3d(r.T_c_ref * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw)
+             : r.T_cw_online;
+}
+
 // FrontendConfig::smooth_acceleration: every tracked frame, keyframes included, smoothed against
 // the final map points it was matched to (the matches that pass the χ² test at its refined pose).
 // Only the frame trajectory moves: the keyframes' own poses (keyframe_trajectory()) stay as BA
@@ -141,7 +148,7 @@ void SlamFrontend::Impl::smooth_frame_poses() {
     SmoothingFrame s;
     s.timestamp = r.timestamp;
     s.valid = r.tracked && r.ref_kf >= 0;
-    if (s.valid) s.T_cam_world = r.T_c_ref * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw;
+    if (s.valid) s.T_cam_world = record_pose(r);
     if (!frames.empty() && !(s.timestamp > frames.back().timestamp)) continue;
     const auto add = [&](int pid, const Observation& o) {
       const MapPoint& p = points[static_cast<std::size_t>(pid)];
@@ -196,7 +203,7 @@ void SlamFrontend::Impl::refine_points_from_frames() {
   }
   for (const auto& r : records) {
     if (!r.tracked || r.keyframe || r.ref_kf < 0) continue;
-    const Eigen::Isometry3d T_cw = r.T_c_ref * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw;
+    const Eigen::Isometry3d T_cw = record_pose(r);
     for (const auto& [pid, o] : r.matches) {
       if (!points[static_cast<std::size_t>(pid)].bad)
         per_point[static_cast<std::size_t>(pid)].push_back({T_cw, o});
@@ -378,11 +385,7 @@ std::vector<FramePose> SlamFrontend::trajectory() const {
     p.index = r.index;
     p.timestamp = r.timestamp;
     p.tracked = r.tracked;
-    const Eigen::Isometry3d T_cw =
-        r.ref_kf >= 0 ? Eigen::Isometry3d(r.T_c_ref *
-                                          impl_->keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw)
-                      : r.T_cw_online;
-    p.T_world_cam = T_cw.inverse();
+    p.T_world_cam = impl_->record_pose(r).inverse();
     out.push_back(p);
   }
   return out;

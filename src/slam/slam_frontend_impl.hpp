@@ -234,7 +234,6 @@ struct SlamFrontend::Impl {
   int ref_kf = -1;
   int last_kf_frame = 0;  // frame_counter at the last keyframe
   int lost_count = 0;
-  int segment_first_kf = 0;  // first keyframe of the current map segment (re-anchoring starts one)
   std::vector<int> segment_starts;  // first keyframe of each segment a re-anchoring started
   std::vector<int> segment_group;   // finish(): per segment, the segment whose world it is in
   int num_merged_segments = 0;
@@ -346,12 +345,12 @@ struct SlamFrontend::Impl {
   [[nodiscard]] int group_of(int kf) const;
   int localise_in_other_segments(const Keyframe& K, Eigen::Isometry3d& T_cw);
   void move_group(int group, const Eigen::Isometry3d& W, int into);
-  [[nodiscard]] Eigen::Isometry3d record_pose(const FrameRecord& r) const;
   void merge_segments();
   void interpolate_records(std::size_t i, std::size_t b);
   void interpolate_lost_frames();
 
-  // ---- slam_frontend.cpp: finish()'s refinement
+  // ---- slam_frontend.cpp: finish()'s refinement, and each frame's pose in the world
+  [[nodiscard]] Eigen::Isometry3d record_pose(const FrameRecord& r) const;
   void refine_frame_poses(const PoseOptimizerParams& params);
   void refine_points_from_frames();
   void smooth_frame_poses();

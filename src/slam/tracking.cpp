@@ -559,7 +559,6 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
         // bounded by the motion during the outage) instead of staying lost for ever.
         const int id = add_keyframe(f, T_cw, in);
         f = keyframes[static_cast<std::size_t>(id)].data;
-        segment_first_kf = id;
         segment_starts.push_back(id);
         res.state = TrackState::kReanchored;
         lost_count = 0;
