@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#include <tuple>
 
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -190,7 +191,7 @@ OrbExtractor::OrbExtractor(const OrbParams& params) : params_(params) {
 
 OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
                                   const PinholeCamera& camera) const {
-  return extract_impl(image, depth, camera, nullptr, 0);
+  return extract_impl(image, depth, camera, nullptr, 0, nullptr);
 }
 
 OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
@@ -198,21 +199,37 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
                                   int spare_count) const {
   DS3D_CHECK(spare_count >= 0, "ds3d::slam::OrbExtractor::extract: spare_count must be >= 0 (got ",
              spare_count, ")");
-  return extract_impl(image, depth, camera, &spare, spare_count);
+  return extract_impl(image, depth, camera, &spare, spare_count, nullptr);
+}
+
+OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
+                                  const PinholeCamera& camera, OrbFeatures& spare, int spare_count,
+                                  OrbCorners& corners) const {
+  DS3D_CHECK(spare_count >= 0, "ds3d::slam::OrbExtractor::extract: spare_count must be >= 0 (got ",
+             spare_count, ")");
+  return extract_impl(image, depth, camera, &spare, spare_count, &corners);
+}
+
+void OrbExtractor::check_inputs(const cv::Mat* image, const cv::Mat& depth,
+                                const PinholeCamera& camera, const char* fn) {
+  camera.validate(fn);
+  if (image != nullptr) {
+    DS3D_CHECK(image->type() == CV_8UC1 || image->type() == CV_8UC3, fn,
+               ": image must be CV_8UC1 or CV_8UC3 (got type ", image->type(), ")");
+    DS3D_CHECK(image->cols == camera.width && image->rows == camera.height, fn, ": image is ",
+               image->cols, "x", image->rows, " but the camera is ", camera.width, "x",
+               camera.height);
+  }
+  DS3D_CHECK(depth.empty() || (depth.type() == CV_16UC1 && depth.cols == camera.width &&
+                               depth.rows == camera.height),
+             fn, ": depth must be empty or CV_16UC1 of the image size (got type ", depth.type(),
+             ", ", depth.cols, "x", depth.rows, ")");
 }
 
 OrbFeatures OrbExtractor::extract_impl(const cv::Mat& image, const cv::Mat& depth,
                                        const PinholeCamera& camera, OrbFeatures* spare,
-                                       int spare_count) const {
-  constexpr const char* fn = "ds3d::slam::OrbExtractor::extract";
-  camera.validate(fn);
-  DS3D_CHECK(image.type() == CV_8UC1 || image.type() == CV_8UC3, fn,
-             ": image must be CV_8UC1 or CV_8UC3 (got type ", image.type(), ")");
-  DS3D_CHECK(image.cols == camera.width && image.rows == camera.height, fn, ": image is ",
-             image.cols, "x", image.rows, " but the camera is ", camera.width, "x", camera.height);
-  DS3D_CHECK(depth.empty() || (depth.type() == CV_16UC1 && depth.size() == image.size()), fn,
-             ": depth must be empty or CV_16UC1 of the image size (got type ", depth.type(), ", ",
-             depth.cols, "x", depth.rows, ")");
+                                       int spare_count, OrbCorners* corners) const {
+  check_inputs(&image, depth, camera, "ds3d::slam::OrbExtractor::extract");
   cv::Mat gray;
   if (image.channels() == 3) {
     cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
@@ -221,12 +238,73 @@ OrbFeatures OrbExtractor::extract_impl(const cv::Mat& image, const cv::Mat& dept
   }
   std::vector<cv::KeyPoint> keypoints;
   std::vector<cv::KeyPoint> spare_kp;
-  detect_levels(gray, keypoints, spare != nullptr ? &spare_kp : nullptr, spare_count);
+  detect_levels(gray, keypoints, spare != nullptr ? &spare_kp : nullptr, spare_count, corners);
+  if (corners != nullptr) {
+    corners->width = gray.cols;
+    corners->height = gray.rows;
+    corners->params = params_;
+    corners->picked = keypoints;
+  }
   OrbFeatures out = describe_gray(gray, std::move(keypoints), depth, camera);
+  if (corners != nullptr) {
+    corners->described.keypoints = out.keypoints;
+    corners->described.descriptors = out.descriptors;
+  }
   if (spare != nullptr) {
     *spare = OrbFeatures{};
     spare->keypoints = std::move(spare_kp);
   }
+  return out;
+}
+
+bool OrbCorners::shares_pyramid(const OrbParams& p, int w, int h) const noexcept {
+  return w == width && h == height && p.num_levels == params.num_levels &&
+         p.scale_factor == params.scale_factor && p.fast_threshold == params.fast_threshold &&
+         p.min_fast_threshold == params.min_fast_threshold && p.cell_size == params.cell_size;
+}
+
+std::optional<OrbFeatures> OrbExtractor::extract_from(const OrbCorners& corners,
+                                                      const cv::Mat& depth,
+                                                      const PinholeCamera& camera) const {
+  check_inputs(nullptr, depth, camera, "ds3d::slam::OrbExtractor::extract_from");
+  if (!corners.shares_pyramid(params_, camera.width, camera.height) ||
+      corners.picked.size() != corners.described.keypoints.size() ||
+      corners.cells.size() > scales_.size()) {
+    return std::nullopt;
+  }
+  // The described keypoints by (level, y, x) of what was handed to the descriptor.
+  const auto key = [](const cv::KeyPoint& k) { return std::make_tuple(k.octave, k.pt.y, k.pt.x); };
+  std::vector<std::uint32_t> order(corners.picked.size());
+  std::iota(order.begin(), order.end(), 0U);
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return key(corners.picked[a]) < key(corners.picked[b]);
+  });
+  std::vector<std::uint32_t> rows;
+  rows.reserve(static_cast<std::size_t>(params_.num_features));
+  for (std::size_t l = 0; l < corners.cells.size(); ++l) {
+    const double s = scales_[l];
+    for (const cv::KeyPoint& k : select_spread(corners.cells[l], features_per_level_[l])) {
+      const auto want = std::make_tuple(static_cast<int>(l), static_cast<float>(k.pt.y * s),
+                                        static_cast<float>(k.pt.x * s));
+      const auto it = std::lower_bound(
+          order.begin(), order.end(), want,
+          [&](std::uint32_t i, const auto& w) { return key(corners.picked[i]) < w; });
+      if (it == order.end() || key(corners.picked[*it]) != want) return std::nullopt;
+      rows.push_back(*it);
+    }
+  }
+  OrbFeatures out;
+  out.keypoints.reserve(rows.size());
+  if (!rows.empty()) {
+    out.descriptors.create(static_cast<int>(rows.size()), corners.described.descriptors.cols,
+                           corners.described.descriptors.type());
+  }
+  for (std::size_t r = 0; r < rows.size(); ++r) {
+    out.keypoints.push_back(corners.described.keypoints[rows[r]]);
+    corners.described.descriptors.row(static_cast<int>(rows[r]))
+        .copyTo(out.descriptors.row(static_cast<int>(r)));
+  }
+  attach_geometry(out, depth, camera);
   return out;
 }
 
@@ -258,7 +336,9 @@ OrbFeatures OrbExtractor::describe_gray(const cv::Mat& gray, std::vector<cv::Key
 }
 
 void OrbExtractor::detect_levels(const cv::Mat& gray, std::vector<cv::KeyPoint>& keypoints,
-                                 std::vector<cv::KeyPoint>* spare, int spare_count) const {
+                                 std::vector<cv::KeyPoint>* spare, int spare_count,
+                                 OrbCorners* corners) const {
+  if (corners != nullptr) corners->cells.clear();
   keypoints.reserve(static_cast<std::size_t>(params_.num_features) + 16);
   cv::Mat level_img = gray;
   std::vector<cv::KeyPoint> level_spare;
@@ -272,7 +352,7 @@ void OrbExtractor::detect_levels(const cv::Mat& gray, std::vector<cv::KeyPoint>&
       cv::resize(level_img, next, sz, 0, 0, cv::INTER_LINEAR);
       level_img = next;
     }
-    const auto cells = detect_cells(level_img, params_);
+    auto cells = detect_cells(level_img, params_);
     const int quota = features_per_level_[static_cast<std::size_t>(l)];
     // The spare budget of a level follows the same geometric share as its primary one.
     const int spare_quota = static_cast<int>(
@@ -291,6 +371,7 @@ void OrbExtractor::detect_levels(const cv::Mat& gray, std::vector<cv::KeyPoint>&
       finish(k);
       keypoints.push_back(k);
     }
+    if (corners != nullptr) corners->cells.push_back(std::move(cells));
     if (spare == nullptr) continue;
     for (auto& k : level_spare) {
       finish(k);

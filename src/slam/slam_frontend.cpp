@@ -259,13 +259,11 @@ PreparedFrame SlamFrontend::extract(FrameInput frame) const {
   const auto t0 = Clock::now();
   const double c0 = thread_cpu_ms();
   PreparedFrame pf;
-  if (impl_->cfg.spare_features > 0) {
-    pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera, pf.spare,
-                                           impl_->cfg.spare_features);
-  } else {
-    pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera);
-  }
+  auto corners = std::make_shared<OrbCorners>();
+  pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera, pf.spare,
+                                         impl_->cfg.spare_features, *corners);
   pf.input = std::move(frame);
+  pf.input.orb_corners = std::move(corners);
   pf.times.extract_ms = ms_since(t0);
   pf.times.extract_cpu_ms = thread_cpu_ms() - c0;
   return pf;
@@ -285,6 +283,7 @@ void SlamFrontend::detect_dynamic(PreparedFrame& frame) {
   frame.objects =
       impl_->source->detect_prepared(frame.input, impl_->cfg.camera, frame.detection.get());
   frame.detection.reset();
+  frame.input.orb_corners.reset();
   frame.times.detect_ms = frame.times.prepare_ms + ms_since(t0);
   frame.times.detect_cpu_ms = frame.times.prepare_cpu_ms + thread_cpu_ms() - c0;
 }

@@ -91,23 +91,20 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
   }
 
   const auto cap = static_cast<std::size_t>(options.queue_capacity);
-  // reader → {extract, prepare → detect} → filter → track (caller's thread). prepare runs the
-  // frame-independent part of the source (DynamicObjectSource::prepare) ahead of detect.
-  struct Detected {
-    DynamicObjects objects;
-    StageTimes times;  // the detect and prepare fields
-  };
+  // reader → {extract, prepare} → detect → filter → track (caller's thread). prepare runs the
+  // frame-independent part of the source (DynamicObjectSource::prepare) beside extract; detect
+  // takes both, so that the source can reuse the extracted ORB corners (FrameInput::orb_corners).
   BoundedQueue<FrameInput> to_extract(cap);
   BoundedQueue<FrameInput> to_prepare(cap);
-  BoundedQueue<PreparedFrame> to_detect(cap);
+  BoundedQueue<PreparedFrame> prepared(cap);
   BoundedQueue<PreparedFrame> extracted(cap);
-  BoundedQueue<Detected> detected(cap);
+  BoundedQueue<PreparedFrame> detected(cap);
   BoundedQueue<PreparedFrame> filtered(cap);
   ErrorSlot error;
   auto close_all = [&] {
     to_extract.close();
     to_prepare.close();
-    to_detect.close();
+    prepared.close();
     extracted.close();
     detected.close();
     filtered.close();
@@ -140,27 +137,24 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
       PreparedFrame tmp;
       tmp.input = std::move(*in);
       slam.prepare_dynamic(tmp);
-      if (!to_detect.push(std::move(tmp))) return;
+      if (!prepared.push(std::move(tmp))) return;
     }
-    to_detect.close();
+    prepared.close();
   }));
   std::thread detector(guarded([&] {
-    while (auto tmp = to_detect.pop()) {
-      slam.detect_dynamic(*tmp);
-      if (!detected.push({std::move(tmp->objects), tmp->times})) return;
+    while (auto pf = extracted.pop()) {
+      auto tmp = prepared.pop();
+      if (!tmp) return;
+      pf->detection = std::move(tmp->detection);
+      pf->times.prepare_ms = tmp->times.prepare_ms;
+      pf->times.prepare_cpu_ms = tmp->times.prepare_cpu_ms;
+      slam.detect_dynamic(*pf);
+      if (!detected.push(std::move(*pf))) return;
     }
     detected.close();
   }));
   std::thread filter(guarded([&] {
-    while (auto pf = extracted.pop()) {
-      auto objects = detected.pop();
-      if (!objects) return;
-      pf->objects = std::move(objects->objects);
-      const StageTimes& t = objects->times;
-      pf->times.detect_ms = t.detect_ms;
-      pf->times.prepare_ms = t.prepare_ms;
-      pf->times.detect_cpu_ms = t.detect_cpu_ms;
-      pf->times.prepare_cpu_ms = t.prepare_cpu_ms;
+    while (auto pf = detected.pop()) {
       slam.filter_dynamic(*pf);
       if (!filtered.push(std::move(*pf))) return;
     }

@@ -669,3 +669,45 @@ TEST(MutualRatioMatches, EqualsOpenCvBruteForceMatcher) {
   EXPECT_TRUE(ds3d::detail::mutual_ratio_matches(a, b.rowRange(0, 1), 0.8F).empty());
   EXPECT_TRUE(ds3d::detail::mutual_ratio_matches(cv::Mat(0, 32, CV_8UC1), b, 0.8F).empty());
 }
+
+namespace {
+
+// Given the front-end's ORB corners of each frame (FrameInput::orb_corners), the source takes its
+// features from them and reports exactly what it reports when it extracts them itself.
+TEST(GeometricMotion, TakesItsFeaturesFromTheFrontEndsCorners) {
+  const auto frames = ds3d::test::render_sequence(ds3d::synth::Scenario::kCrowdCross, 120, 1, 12);
+  const ds3d::PinholeCamera camera = ds3d::synth::SynthOptions{}.camera;
+  const ds3d::slam::OrbExtractor front;  // the front-end's default extractor
+  GeometricMotionSource own;
+  GeometricMotionSource shared;
+  int objects = 0;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    FrameInput f;
+    f.index = i;
+    f.timestamp = frames[i].timestamp;
+    f.rgb = frames[i].rgb;
+    f.depth = frames[i].depth;
+    const auto a = own.detect(f, camera);
+    EXPECT_FALSE(own.last_stats().shared_orb);
+    auto corners = std::make_shared<ds3d::slam::OrbCorners>();
+    ds3d::slam::OrbFeatures spare;
+    (void)front.extract(f.rgb, f.depth, camera, spare, 0, *corners);
+    f.orb_corners = corners;
+    const auto b = shared.detect(f, camera);
+    EXPECT_TRUE(shared.last_stats().shared_orb) << "frame " << i;
+    ASSERT_EQ(a.boxes_3d.size(), b.boxes_3d.size()) << "frame " << i;
+    for (std::size_t k = 0; k < a.boxes_3d.size(); ++k) EXPECT_EQ(a.boxes_3d[k], b.boxes_3d[k]);
+    EXPECT_EQ(a.boxes_2d, b.boxes_2d);
+    ASSERT_EQ(a.pixel_mask.empty(), b.pixel_mask.empty());
+    if (!a.pixel_mask.empty()) {
+      EXPECT_EQ(cv::norm(a.pixel_mask, b.pixel_mask, cv::NORM_L1), 0.0);
+    }
+    EXPECT_TRUE(own.last_stats().T_world_cam.isApprox(shared.last_stats().T_world_cam, 0.0));
+    EXPECT_EQ(own.last_stats().num_matches, shared.last_stats().num_matches);
+    EXPECT_EQ(own.last_tested().size(), shared.last_tested().size());
+    objects += static_cast<int>(a.boxes_3d.size());
+  }
+  EXPECT_GT(objects, 0);  // the comparison covered frames with people found
+}
+
+}  // namespace

@@ -231,3 +231,86 @@ TEST(OrbExtractor, SpareCandidatesAreExtraAndDescribable) {
 }
 
 }  // namespace
+
+namespace {
+
+void expect_same_features(const ds3d::slam::OrbFeatures& a, const ds3d::slam::OrbFeatures& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const cv::KeyPoint& x = a.keypoints[i];
+    const cv::KeyPoint& y = b.keypoints[i];
+    ASSERT_TRUE(x.pt == y.pt && x.angle == y.angle && x.size == y.size && x.octave == y.octave &&
+                x.response == y.response && x.class_id == y.class_id)
+        << "keypoint " << i;
+  }
+  ASSERT_EQ(a.descriptors.size(), b.descriptors.size());
+  ASSERT_EQ(a.descriptors.type(), b.descriptors.type());
+  if (!a.descriptors.empty()) {
+    EXPECT_EQ(cv::norm(a.descriptors, b.descriptors, cv::NORM_HAMMING), 0.0);
+  }
+  EXPECT_EQ(a.undistorted, b.undistorted);
+  EXPECT_EQ(a.depth, b.depth);
+  EXPECT_EQ(a.close_depth, b.close_depth);
+}
+
+// Depth with holes and a range of 0.05-12 m, so that min_depth, max_depth and max_range matter.
+cv::Mat ramp_depth(int w = 640, int h = 480) {
+  cv::Mat d(h, w, CV_16UC1);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      d.at<std::uint16_t>(y, x) =
+          (x / 7 + y / 5) % 13 == 0 ? 0 : static_cast<std::uint16_t>(250 + 60 * x + 7 * y);
+    }
+  }
+  return d;
+}
+
+// An extractor with fewer features, another depth range or distortion gets from the recorded
+// corners exactly what it would extract itself; one with another pyramid, a larger budget or
+// another image size gets nothing.
+TEST(OrbExtractor, ExtractFromRecordedCornersEqualsExtract) {
+  const cv::Mat img = textured_image(5);
+  const cv::Mat depth = ramp_depth();
+  ds3d::PinholeCamera cam = plain_camera();
+  cam.k1 = 0.05;
+  const OrbExtractor front;
+  ds3d::slam::OrbCorners corners;
+  ds3d::slam::OrbFeatures spare;
+  const auto mine = front.extract(img, depth, cam, spare, 300, corners);
+  ASSERT_EQ(corners.cells.size(), 8U);
+  ASSERT_EQ(corners.picked.size(), mine.size());
+  for (const int n : {1000, 800, 250}) {
+    for (const double max_depth : {3.0, 6.0}) {
+      OrbParams p;
+      p.num_features = n;
+      p.max_depth = max_depth;
+      p.max_range = std::max(p.max_range, max_depth);
+      const OrbExtractor other(p);
+      const auto shared = other.extract_from(corners, depth, cam);
+      ASSERT_TRUE(shared.has_value()) << n << " features, max_depth " << max_depth;
+      expect_same_features(*shared, other.extract(img, depth, cam));
+      expect_same_features(*other.extract_from(corners, {}, cam), other.extract(img, {}, cam));
+    }
+  }
+  OrbParams p;
+  p.num_features = 2000;  // more per level than was described
+  EXPECT_FALSE(OrbExtractor(p).extract_from(corners, depth, cam).has_value());
+  p = {};
+  p.fast_threshold = 25;
+  EXPECT_FALSE(OrbExtractor(p).extract_from(corners, depth, cam).has_value());
+  p = {};
+  p.num_levels = 6;
+  EXPECT_FALSE(OrbExtractor(p).extract_from(corners, depth, cam).has_value());
+  ds3d::PinholeCamera small = cam;
+  small.width = 320;
+  small.height = 240;
+  EXPECT_FALSE(front.extract_from(corners, {}, small).has_value());
+  EXPECT_THROW((void)front.extract_from(corners, cv::Mat::zeros(240, 640, CV_16UC1), cam),
+               ds3d::InvalidArgument);
+  // A black image: no corners, no features, and the same empty result.
+  ds3d::slam::OrbCorners none;
+  const auto empty = front.extract(cv::Mat::zeros(480, 640, CV_8UC3), {}, cam, spare, 0, none);
+  expect_same_features(*front.extract_from(none, {}, cam), empty);
+}
+
+}  // namespace

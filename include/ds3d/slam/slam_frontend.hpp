@@ -298,14 +298,15 @@ class SlamFrontend {
   /// Same for a frame read by RgbdDataset (its index and timestamp are kept).
   TrackResult track(const RgbdFrame& frame);
 
-  /// Stage 1 (thread-safe, const): validates the frame and extracts features.
+  /// Stage 1 (thread-safe, const): validates the frame and extracts features; the ORB corners
+  /// go to input.orb_corners for the source (detect_dynamic drops them).
   [[nodiscard]] PreparedFrame extract(FrameInput frame) const;
   /// Stage 2a (optional; in frame order, may run on another thread than the other stages, ahead
   /// of detect_dynamic of earlier frames): the frame-independent part of the dynamic-object
   /// source's work (DynamicObjectSource::prepare), kept in frame.detection.
   void prepare_dynamic(PreparedFrame& frame) const;
-  /// Stage 2: runs the dynamic-object source (in frame order), with frame.detection if
-  /// prepare_dynamic filled it (then cleared).
+  /// Stage 2: runs the dynamic-object source (in frame order, after extract), with
+  /// frame.detection if prepare_dynamic filled it (then cleared).
   void detect_dynamic(PreparedFrame& frame);
   /// Stage 3: runs the dynamic filter (in frame order, after detect_dynamic).
   void filter_dynamic(PreparedFrame& frame);
@@ -371,7 +372,8 @@ class SlamFrontend {
 /// A dataset frame as tracking input: index, rgb timestamp and both images (moved, not copied;
 /// `depth_timestamp` is dropped).
 [[nodiscard]] inline FrameInput to_frame_input(RgbdFrame frame) {
-  return FrameInput{frame.index, frame.timestamp, std::move(frame.rgb), std::move(frame.depth)};
+  return FrameInput{frame.index, frame.timestamp, std::move(frame.rgb), std::move(frame.depth),
+                    nullptr};
 }
 
 /// Options of run_pipeline.
@@ -381,9 +383,11 @@ struct PipelineOptions {
   void validate() const;   ///< throws ds3d::InvalidArgument naming the bad field
 };
 
-/// Runs the four stages over a sequence: extraction and dynamic-object detection in parallel
-/// threads, then the dynamic filter, then tracking, connected by bounded queues so that frame
-/// t+1 is extracted while frame t is tracked (3DS-SLAM runs detection beside ORB extraction).
+/// Runs the stages over a sequence: ORB extraction and the source's prepare() (for HTx the
+/// network) in parallel threads, then the source's detection (with the frame's ORB corners in
+/// FrameInput::orb_corners), the dynamic filter and tracking, connected by bounded queues so
+/// that frame t+1 is extracted and prepared while frame t is tracked (3DS-SLAM runs detection
+/// beside ORB extraction).
 /// @param slam   the front-end (its dynamic stages are used)
 /// @param next   returns the next frame, or std::nullopt at the end; called from one thread
 /// @param on_result called on the calling thread for every frame, in order (may be empty)

@@ -65,6 +65,7 @@ using ds3d::slam::GeometricMotionStats;
 // Every field of GeometricMotionStats except the pose (bound separately as a 4x4 array).
 #define DS3D_GEOMETRIC_STATS(X)                                                    \
   X(pose_ok, "a reference was available and the pose is trusted")                  \
+  X(shared_orb, "the features came from the front-end's ORB corners")              \
   X(num_matches, "descriptor matches with the reference (reference depth)")        \
   X(num_pose_inliers, "PnP-RANSAC inliers")                                        \
   X(prior_replaced, "the motion prior replaced the largest-consensus pose")        \

@@ -283,7 +283,13 @@ void GeometricMotionSource::extract_frame(const FrameInput& frame, const Pinhole
     // A copy: the source keeps it for reference_gap frames, and the caller's buffer may be
     // reused or freed meanwhile (a cv::Mat over external memory, a numpy array).
     cur.depth_small = frame.depth.clone();
-    cur.features = extractor_.extract(frame.rgb, frame.depth, cs);
+    // The front-end's corners of this image, when it passed them on and the pyramids agree.
+    std::optional<OrbFeatures> shared;
+    if (frame.orb_corners != nullptr) {
+      shared = extractor_.extract_from(*frame.orb_corners, frame.depth, cs);
+    }
+    stats_.shared_orb = shared.has_value();
+    cur.features = shared ? std::move(*shared) : extractor_.extract(frame.rgb, frame.depth, cs);
   } else {
     cv::Mat rgb_small;
     cv::resize(frame.rgb, rgb_small, cv::Size(sw, sh), 0, 0, cv::INTER_AREA);

@@ -6,7 +6,8 @@
 /// (ds3d::slam; OpenCV). It finds moving objects from multi-view geometry alone.
 ///
 /// Per frame (the source keeps its own short history of frames):
-///  1. ORB features of the frame (its own extractor, so it runs beside the front-end's), mutually
+///  1. ORB features of the frame (its own extractor; picked from FrameInput::orb_corners, the
+///     front-end's corners, when the pyramids agree: OrbExtractor::extract_from), mutually
 ///     matched (with Lowe's ratio test) to a reference frame `reference_gap` frames back (the
 ///     oldest one with a trusted pose);
 ///  2. robust pose: PnP-RANSAC (EPnP minimal sets, then Levenberg-Marquardt on the inliers) of
@@ -146,6 +147,7 @@ struct GeometricMotionParams {
 /// Statistics of the last detect() call.
 struct GeometricMotionStats {
   bool pose_ok = false;          ///< a reference was available and the pose is trusted
+  bool shared_orb = false;       ///< the features came from FrameInput::orb_corners
   int num_matches = 0;           ///< descriptor matches with the reference (reference depth)
   int num_pose_inliers = 0;      ///< PnP-RANSAC inliers
   bool prior_replaced = false;   ///< the motion prior replaced the largest-consensus pose
@@ -179,7 +181,8 @@ struct TestedKeypoint {
 /// The `geometric` dynamic-object source (see the file comment for the method).
 /// @note Deterministic for a given frame sequence. Keeps state across frames: call detect() in
 ///       frame order (the SLAM pipeline does); not thread-safe. Cost per frame: one ORB
-///       extraction (at image_scale), an O(N²) popcount Hamming match of N = num_features,
+///       extraction (at image_scale; with FrameInput::orb_corners a selection and copy, about
+///       a fifth of it), an O(N²) popcount Hamming match of N = num_features,
 ///       PnP-RANSAC, HDBSCAN on the moving keypoints only, two 7×7 min/max filters of the depth
 ///       and an O(pixels / warp_stride²) dense warp with connected components; about 90 M
 ///       instructions per 640×480 frame (docs/benchmarks.md).

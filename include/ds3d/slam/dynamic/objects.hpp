@@ -29,6 +29,10 @@ struct FrameInput {
   double timestamp = 0;   ///< [s], non-decreasing along the sequence
   cv::Mat rgb;            ///< CV_8UC3 BGR (or CV_8UC1 grey), camera.width × camera.height
   cv::Mat depth;          ///< CV_16UC1, camera.depth_scale units per metre, 0 = none; may be empty
+  /// Optional: the ORB corners SlamFrontend::extract found in `rgb` (set between its extract and
+  /// detect stages, then dropped). A source with its own OrbExtractor takes its features from
+  /// them when the pyramids agree (OrbExtractor::extract_from): the same features, less work.
+  std::shared_ptr<const OrbCorners> orb_corners;
 };
 
 /// A point segmentation that comes with some 3-D boxes (e.g. HtxSource's part head,
