@@ -70,6 +70,16 @@ class ErrorSlot {
   std::exception_ptr e_;
 };
 
+// Joins what the extract stage made of a frame (its input, features, spare features and
+// extraction times) into the frame that went through prepare (and maybe detect).
+void take_extraction(PreparedFrame& into, PreparedFrame from) {
+  into.input = std::move(from.input);
+  into.features = std::move(from.features);
+  into.spare = std::move(from.spare);
+  into.times.extract_ms = from.times.extract_ms;
+  into.times.extract_cpu_ms = from.times.extract_cpu_ms;
+}
+
 }  // namespace
 
 std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
@@ -91,9 +101,11 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
   }
 
   const auto cap = static_cast<std::size_t>(options.queue_capacity);
-  // reader → {extract, prepare} → detect → filter → track (caller's thread). prepare runs the
-  // frame-independent part of the source (DynamicObjectSource::prepare) beside extract; detect
-  // takes both, so that the source can reuse the extracted ORB corners (FrameInput::orb_corners).
+  // reader → {extract, prepare → detect} → filter → track (caller's thread). prepare runs the
+  // frame-independent part of the source (DynamicObjectSource::prepare) ahead of detect. A
+  // source that reads the frame's ORB corners (uses_orb_corners) detects after extraction
+  // instead: reader → {extract, prepare} → detect → filter → track.
+  const bool corners_first = slam.dynamic_source().uses_orb_corners();
   BoundedQueue<FrameInput> to_extract(cap);
   BoundedQueue<FrameInput> to_prepare(cap);
   BoundedQueue<PreparedFrame> prepared(cap);
@@ -142,19 +154,28 @@ std::vector<TrackResult> run_pipeline(SlamFrontend& slam,
     prepared.close();
   }));
   std::thread detector(guarded([&] {
-    while (auto pf = extracted.pop()) {
-      auto tmp = prepared.pop();
-      if (!tmp) return;
-      pf->detection = std::move(tmp->detection);
-      pf->times.prepare_ms = tmp->times.prepare_ms;
-      pf->times.prepare_cpu_ms = tmp->times.prepare_cpu_ms;
+    while (auto pf = prepared.pop()) {
+      if (corners_first) {
+        auto ex = extracted.pop();
+        if (!ex) return;
+        take_extraction(*pf, std::move(*ex));
+      }
       slam.detect_dynamic(*pf);
       if (!detected.push(std::move(*pf))) return;
     }
     detected.close();
   }));
+  // The next frame with its extraction and its objects (nothing at the end).
+  const auto next_detected = [&]() -> std::optional<PreparedFrame> {
+    if (corners_first) return detected.pop();
+    auto ex = extracted.pop();
+    if (!ex) return std::nullopt;
+    auto pf = detected.pop();
+    if (pf) take_extraction(*pf, std::move(*ex));
+    return pf;
+  };
   std::thread filter(guarded([&] {
-    while (auto pf = detected.pop()) {
+    while (auto pf = next_detected()) {
       slam.filter_dynamic(*pf);
       if (!filtered.push(std::move(*pf))) return;
     }

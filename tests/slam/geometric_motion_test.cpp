@@ -44,7 +44,9 @@
 
 #include "ds3d/slam/config.hpp"
 #include "ds3d/slam/dataset.hpp"
+#include "ds3d/slam/dynamic/combinators.hpp"
 #include "ds3d/slam/dynamic/dynamic_sources.hpp"
+#include "ds3d/slam/slam_frontend.hpp"
 #include "ds3d/slam/synth.hpp"
 #include "support/files.hpp"
 #include "support/synth_frames.hpp"
@@ -708,6 +710,44 @@ TEST(GeometricMotion, TakesItsFeaturesFromTheFrontEndsCorners) {
     objects += static_cast<int>(a.boxes_3d.size());
   }
   EXPECT_GT(objects, 0);  // the comparison covered frames with people found
+  // The front-end records the corners only for a source that reads them.
+  EXPECT_TRUE(own.uses_orb_corners());
+  EXPECT_FALSE(GeometricMotionSource({.image_scale = 0.5}).uses_orb_corners());
+  const auto none = std::make_shared<ds3d::slam::NoDynamicObjects>();
+  const auto geo = std::make_shared<GeometricMotionSource>();
+  EXPECT_FALSE(none->uses_orb_corners());
+  EXPECT_TRUE(ds3d::slam::CompositeSource(none, geo).uses_orb_corners());
+  EXPECT_FALSE(ds3d::slam::CompositeSource(none, none).uses_orb_corners());
+  EXPECT_TRUE(ds3d::slam::MotionGatedSource(none, geo).uses_orb_corners());
+  // Through SlamFrontend, threaded or not, the source gets them (counted per frame when the
+  // stages run on the caller's thread; threaded, the source's last frame).
+  for (const bool threaded : {false, true}) {
+    ds3d::slam::FrontendConfig cfg;
+    cfg.camera = camera;
+    auto src = std::make_shared<GeometricMotionSource>();
+    ds3d::slam::SlamFrontend slam(cfg, src);
+    std::size_t i = 0;
+    int with = 0;
+    const auto next = [&]() -> std::optional<FrameInput> {
+      if (i >= 4) return std::nullopt;
+      FrameInput f;
+      f.index = i;
+      f.timestamp = frames[i].timestamp;
+      f.rgb = frames[i].rgb;
+      f.depth = frames[i].depth;
+      ++i;
+      return f;
+    };
+    const auto count = [&](const auto&) {
+      if (!threaded) with += src->last_stats().shared_orb ? 1 : 0;
+    };
+    (void)ds3d::slam::run_pipeline(slam, next, count, {.threaded = threaded});
+    if (threaded) {
+      EXPECT_TRUE(src->last_stats().shared_orb);
+    } else {
+      EXPECT_EQ(with, 4);
+    }
+  }
 }
 
 }  // namespace

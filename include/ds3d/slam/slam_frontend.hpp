@@ -298,8 +298,8 @@ class SlamFrontend {
   /// Same for a frame read by RgbdDataset (its index and timestamp are kept).
   TrackResult track(const RgbdFrame& frame);
 
-  /// Stage 1 (thread-safe, const): validates the frame and extracts features; the ORB corners
-  /// go to input.orb_corners for the source (detect_dynamic drops them).
+  /// Stage 1 (thread-safe, const): validates the frame and extracts features; when the source
+  /// uses them, the ORB corners go to input.orb_corners (detect_dynamic drops them).
   [[nodiscard]] PreparedFrame extract(FrameInput frame) const;
   /// Stage 2a (optional; in frame order, may run on another thread than the other stages, ahead
   /// of detect_dynamic of earlier frames): the frame-independent part of the dynamic-object

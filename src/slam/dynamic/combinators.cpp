@@ -73,6 +73,10 @@ CompositeSource::CompositeSource(std::shared_ptr<DynamicObjectSource> first,
 
 std::string CompositeSource::name() const { return first_->name() + "+" + second_->name(); }
 
+bool CompositeSource::uses_orb_corners() const {
+  return first_->uses_orb_corners() || second_->uses_orb_corners();
+}
+
 namespace {
 
 // What the two sources of a combinator prepared (either may be null).
@@ -170,6 +174,10 @@ MotionGatedSource::MotionGatedSource(std::shared_ptr<DynamicObjectSource> semant
 
 std::string MotionGatedSource::name() const {
   return semantic_->name() + (params_.evidence ? "&&" : "&") + motion_->name();
+}
+
+bool MotionGatedSource::uses_orb_corners() const {
+  return semantic_->uses_orb_corners() || motion_->uses_orb_corners();
 }
 
 namespace {

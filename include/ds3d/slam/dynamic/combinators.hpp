@@ -40,6 +40,8 @@ class CompositeSource final : public DynamicObjectSource {
       const FrameInput& frame, const PinholeCamera& camera) const override;
   DynamicObjects detect_prepared(const FrameInput& frame, const PinholeCamera& camera,
                                  const PreparedDetection* prepared) override;
+  /// True when either source reads FrameInput::orb_corners.
+  [[nodiscard]] bool uses_orb_corners() const override;
   /// "<first>+<second>", e.g. "htx+geometric".
   [[nodiscard]] std::string name() const override;
   /// The source that runs first (e.g. the semantic detector).
@@ -119,6 +121,8 @@ class MotionGatedSource final : public DynamicObjectSource {
       const FrameInput& frame, const PinholeCamera& camera) const override;
   DynamicObjects detect_prepared(const FrameInput& frame, const PinholeCamera& camera,
                                  const PreparedDetection* prepared) override;
+  /// True when either source reads FrameInput::orb_corners.
+  [[nodiscard]] bool uses_orb_corners() const override;
   /// "<semantic>&<motion>", e.g. "htx&geometric" ("htx&&geometric" with the evidence gate).
   [[nodiscard]] std::string name() const override;
   /// Semantic boxes (2-D and 3-D) of the last detect() call, before the gate.

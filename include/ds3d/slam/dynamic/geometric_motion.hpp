@@ -193,6 +193,8 @@ class GeometricMotionSource final : public DynamicObjectSource {
   /// Moving objects of `frame` as 3-D boxes (camera frame). Frames without depth give nothing.
   DynamicObjects detect(const FrameInput& frame, const PinholeCamera& camera) override;
   [[nodiscard]] std::string name() const override { return "geometric"; }
+  /// True at image_scale 1: its features then come from FrameInput::orb_corners when given.
+  [[nodiscard]] bool uses_orb_corners() const override { return params_.image_scale == 1.0; }
   /// Counters of the last detect() call (matches, moving keypoints, warp pixels, objects).
   [[nodiscard]] const GeometricMotionStats& last_stats() const noexcept { return stats_; }
   /// The parameters as validated by the constructor.

@@ -29,9 +29,10 @@ struct FrameInput {
   double timestamp = 0;   ///< [s], non-decreasing along the sequence
   cv::Mat rgb;            ///< CV_8UC3 BGR (or CV_8UC1 grey), camera.width × camera.height
   cv::Mat depth;          ///< CV_16UC1, camera.depth_scale units per metre, 0 = none; may be empty
-  /// Optional: the ORB corners SlamFrontend::extract found in `rgb` (set between its extract and
-  /// detect stages, then dropped). A source with its own OrbExtractor takes its features from
-  /// them when the pyramids agree (OrbExtractor::extract_from): the same features, less work.
+  /// Optional: the ORB corners SlamFrontend::extract found in `rgb`, recorded when the source
+  /// asks for them (DynamicObjectSource::uses_orb_corners) and dropped after detection. A source
+  /// with its own OrbExtractor takes its features from them when the pyramids agree
+  /// (OrbExtractor::extract_from): the same features, less work.
   std::shared_ptr<const OrbCorners> orb_corners;
 };
 
@@ -111,6 +112,9 @@ class DynamicObjectSource {
                                          const PreparedDetection* /*prepared*/) {
     return detect(frame, camera);
   }
+  /// True when detect() reads FrameInput::orb_corners (default false): SlamFrontend::extract
+  /// records them only then.
+  [[nodiscard]] virtual bool uses_orb_corners() const { return false; }
   /// Short name for logs and stats (e.g. "none", "htx").
   [[nodiscard]] virtual std::string name() const = 0;
 };
