@@ -383,11 +383,11 @@ struct PipelineOptions {
   void validate() const;   ///< throws ds3d::InvalidArgument naming the bad field
 };
 
-/// Runs the stages over a sequence: ORB extraction and the source's prepare() (for HTx the
-/// network) in parallel threads, then the source's detection (with the frame's ORB corners in
-/// FrameInput::orb_corners), the dynamic filter and tracking, connected by bounded queues so
-/// that frame t+1 is extracted and prepared while frame t is tracked (3DS-SLAM runs detection
-/// beside ORB extraction).
+/// Runs the stages over a sequence: ORB extraction beside the dynamic-object source (its
+/// prepare(), for HTx the network, one frame ahead of its detection), then the dynamic filter,
+/// then tracking, connected by bounded queues so that frame t+1 is extracted and detected while
+/// frame t is tracked (3DS-SLAM runs detection beside ORB extraction). A source that reads the
+/// frame's ORB corners (DynamicObjectSource::uses_orb_corners) detects after extraction instead.
 /// @param slam   the front-end (its dynamic stages are used)
 /// @param next   returns the next frame, or std::nullopt at the end; called from one thread
 /// @param on_result called on the calling thread for every frame, in order (may be empty)
