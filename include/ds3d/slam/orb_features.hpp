@@ -121,7 +121,9 @@ class OrbExtractor {
   /// cheaper than extract(). Returns nothing (the caller extracts) when the pyramids differ
   /// (OrbCorners::shares_pyramid with camera.width × camera.height) or when a chosen keypoint is
   /// not among the described ones (this extractor wants more features per level than the other).
-  /// @param depth  as for extract()
+  /// @param corners what another extractor recorded on this frame's image
+  /// @param depth   as for extract()
+  /// @param camera  as for extract(); its size must be the image's
   /// @throws ds3d::InvalidArgument as extract() for a bad camera or depth.
   [[nodiscard]] std::optional<OrbFeatures> extract_from(const OrbCorners& corners,
                                                         const cv::Mat& depth,
