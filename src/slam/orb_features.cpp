@@ -197,16 +197,12 @@ OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
 OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
                                   const PinholeCamera& camera, OrbFeatures& spare,
                                   int spare_count) const {
-  DS3D_CHECK(spare_count >= 0, "ds3d::slam::OrbExtractor::extract: spare_count must be >= 0 (got ",
-             spare_count, ")");
   return extract_impl(image, depth, camera, &spare, spare_count, nullptr);
 }
 
 OrbFeatures OrbExtractor::extract(const cv::Mat& image, const cv::Mat& depth,
                                   const PinholeCamera& camera, OrbFeatures& spare, int spare_count,
                                   OrbCorners& corners) const {
-  DS3D_CHECK(spare_count >= 0, "ds3d::slam::OrbExtractor::extract: spare_count must be >= 0 (got ",
-             spare_count, ")");
   return extract_impl(image, depth, camera, &spare, spare_count, &corners);
 }
 
@@ -230,6 +226,8 @@ OrbFeatures OrbExtractor::extract_impl(const cv::Mat& image, const cv::Mat& dept
                                        const PinholeCamera& camera, OrbFeatures* spare,
                                        int spare_count, OrbCorners* corners) const {
   check_inputs(&image, depth, camera, "ds3d::slam::OrbExtractor::extract");
+  DS3D_CHECK(spare_count >= 0, "ds3d::slam::OrbExtractor::extract: spare_count must be >= 0 (got ",
+             spare_count, ")");
   cv::Mat gray;
   if (image.channels() == 3) {
     cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
