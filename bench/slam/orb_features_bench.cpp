@@ -2,9 +2,12 @@
 // SPDX-FileCopyrightText: 2026 ds3d authors
 // ORB extraction (include/ds3d/orb_features.hpp) on a 640x480 generated frame (ds3d::synth
 // walking_xyz frame 0: textured room and two walkers), by feature budget and pyramid depth, grey
-// versus colour input, and the all-pairs Hamming distance that brute-force matching pays.
+// versus colour input, a second extractor's features taken from recorded corners (extract_from),
+// and the all-pairs Hamming distance that brute-force matching pays.
 // (BM_OrbExtract in slam_frontend_bench.cpp times the static room at 1000/2000 features.)
 #include <benchmark/benchmark.h>
+
+#include <optional>
 
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
@@ -49,6 +52,33 @@ BENCHMARK(BM_OrbExtract)
     ->Args({2000, 8, 0})
     ->Args({1000, 4, 0})
     ->Args({1000, 8, 1})
+    ->Unit(benchmark::kMillisecond);
+
+// The geometric source's 800 features taken from the front-end's recorded corners (1000
+// features) with extract_from, against extracting them again (BM_OrbExtract/800 equivalent).
+void BM_OrbExtractFrom(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const ds3d::slam::OrbExtractor front;
+  ds3d::slam::OrbParams p;
+  p.num_features = static_cast<int>(state.range(0));
+  const ds3d::slam::OrbExtractor source(p);
+  const ds3d::PinholeCamera cam = ds3d::synth::SynthOptions{}.camera;
+  ds3d::slam::OrbCorners corners;
+  ds3d::slam::OrbFeatures spare;
+  (void)front.extract(frame().rgb, frame().depth, cam, spare, 0, corners);
+  std::size_t n = 0;
+  for (auto _ : state) {
+    auto f = state.range(1) != 0 ? source.extract_from(corners, frame().depth, cam)
+                                 : std::optional(source.extract(frame().rgb, frame().depth, cam));
+    n = f ? f->size() : 0;
+    benchmark::DoNotOptimize(f);
+  }
+  state.counters["keypoints"] = static_cast<double>(n);
+}
+BENCHMARK(BM_OrbExtractFrom)
+    ->ArgNames({"features", "from_corners"})
+    ->Args({800, 0})
+    ->Args({800, 1})
     ->Unit(benchmark::kMillisecond);
 
 // N x N descriptor_distance between the features of two frames (N = 1000): brute matching cost.

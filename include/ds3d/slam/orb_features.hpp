@@ -117,8 +117,9 @@ class OrbExtractor {
 
   /// The features extract(image, depth, camera) returns, bit for bit, taken from the corners
   /// another extractor recorded on the same image: this extractor's even spread over
-  /// `corners.cells`, and each chosen keypoint's descriptor from `corners.described`. About 20×
-  /// cheaper than extract(). Returns nothing (the caller extracts) when the pyramids differ
+  /// `corners.cells`, and each chosen keypoint's descriptor from `corners.described`. About 30×
+  /// cheaper than extract() (0.17 against 5.3 ms for 800 features of a 640×480 image,
+  /// orb_features_bench). Returns nothing (the caller extracts) when the pyramids differ
   /// (OrbCorners::shares_pyramid with camera.width × camera.height) or when a chosen keypoint is
   /// not among the described ones (this extractor wants more features per level than the other).
   /// @param corners what another extractor recorded on this frame's image

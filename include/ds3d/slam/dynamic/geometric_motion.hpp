@@ -182,7 +182,7 @@ struct TestedKeypoint {
 /// @note Deterministic for a given frame sequence. Keeps state across frames: call detect() in
 ///       frame order (the SLAM pipeline does); not thread-safe. Cost per frame: one ORB
 ///       extraction (at image_scale; with FrameInput::orb_corners a selection and copy, about
-///       a fifth of it), an O(N²) popcount Hamming match of N = num_features,
+///       1/30 of it), an O(N²) popcount Hamming match of N = num_features,
 ///       PnP-RANSAC, HDBSCAN on the moving keypoints only, two 7×7 min/max filters of the depth
 ///       and an O(pixels / warp_stride²) dense warp with connected components; about 90 M
 ///       instructions per 640×480 frame (docs/benchmarks.md).
