@@ -259,16 +259,15 @@ PreparedFrame SlamFrontend::extract(FrameInput frame) const {
   const auto t0 = Clock::now();
   const double c0 = thread_cpu_ms();
   PreparedFrame pf;
+  // With spare_features = 0 the spare list stays empty and the features are extract()'s.
   if (impl_->source->uses_orb_corners()) {
     auto corners = std::make_shared<OrbCorners>();
     pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera, pf.spare,
                                            impl_->cfg.spare_features, *corners);
     frame.orb_corners = std::move(corners);
-  } else if (impl_->cfg.spare_features > 0) {
+  } else {
     pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera, pf.spare,
                                            impl_->cfg.spare_features);
-  } else {
-    pf.features = impl_->extractor.extract(frame.rgb, frame.depth, impl_->cfg.camera);
   }
   pf.input = std::move(frame);
   pf.times.extract_ms = ms_since(t0);

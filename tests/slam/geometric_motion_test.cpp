@@ -366,6 +366,16 @@ TEST(GeometricMotion, RejectsBadParams) {
   }
 }
 
+// Rendered frame i as source input (the images shared, not copied).
+FrameInput frame_input(const std::vector<ds3d::synth::SynthFrame>& frames, std::size_t i) {
+  FrameInput f;
+  f.index = i;
+  f.timestamp = frames[i].timestamp;
+  f.rgb = frames[i].rgb;
+  f.depth = frames[i].depth;
+  return f;
+}
+
 // Runs a GeometricMotionSource with the given motion prior over rendered frames and calls
 // `after(i, src)` after each frame; returns how many frames' poses the prior chose.
 template <class After>
@@ -375,11 +385,7 @@ int run_source(const std::vector<ds3d::synth::SynthFrame>& frames, double max_ac
   GeometricMotionSource src({.max_acceleration = max_acceleration});
   int replaced = 0;
   for (std::size_t i = 0; i < frames.size(); ++i) {
-    FrameInput f;
-    f.index = i;
-    f.timestamp = frames[i].timestamp;
-    f.rgb = frames[i].rgb;
-    f.depth = frames[i].depth;
+    FrameInput f = frame_input(frames, i);
     (void)src.detect(f, camera);
     replaced += src.last_stats().prior_replaced ? 1 : 0;
     after(i, src);
@@ -684,11 +690,7 @@ TEST(GeometricMotion, TakesItsFeaturesFromTheFrontEndsCorners) {
   GeometricMotionSource shared;
   int objects = 0;
   for (std::size_t i = 0; i < frames.size(); ++i) {
-    FrameInput f;
-    f.index = i;
-    f.timestamp = frames[i].timestamp;
-    f.rgb = frames[i].rgb;
-    f.depth = frames[i].depth;
+    FrameInput f = frame_input(frames, i);
     const auto a = own.detect(f, camera);
     EXPECT_FALSE(own.last_stats().shared_orb);
     auto corners = std::make_shared<ds3d::slam::OrbCorners>();
@@ -730,13 +732,7 @@ TEST(GeometricMotion, TakesItsFeaturesFromTheFrontEndsCorners) {
     int with = 0;
     const auto next = [&]() -> std::optional<FrameInput> {
       if (i >= 4) return std::nullopt;
-      FrameInput f;
-      f.index = i;
-      f.timestamp = frames[i].timestamp;
-      f.rgb = frames[i].rgb;
-      f.depth = frames[i].depth;
-      ++i;
-      return f;
+      return frame_input(frames, i++);
     };
     const auto count = [&](const auto&) {
       if (!threaded) with += src->last_stats().shared_orb ? 1 : 0;
