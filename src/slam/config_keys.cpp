@@ -285,6 +285,11 @@ std::vector<ConfigKey> geometric_keys() {
           "the constant-velocity prediction may be replaced by one the prediction explains, >= 0 "
           "(0 = off)"),
       key(
+          "geometric.hold_prediction_inliers",
+          [](auto& c) -> auto& { return c.geometric.hold_prediction_inliers; },
+          "[inliers] a pose that breaks the motion prior with fewer inliers than this and no "
+          "second hypothesis is replaced by the prediction itself, >= 0 (0 = off)"),
+      key(
           "geometric.warp_gap", [](auto& c) -> auto& { return c.geometric.warp_gap; },
           "[frames] between the current frame and the reference of the dense depth warp, >= 1"),
       key(

@@ -39,6 +39,9 @@ using ds3d::slam::GeometricMotionStats;
   X(max_acceleration,                                                                             \
     "motion prior of the source's own pose [m/s^2], >= 0 (0 = off): a pose farther than this * "  \
     "dt^2 from the constant-velocity prediction may be replaced by one the prediction explains")  \
+  X(hold_prediction_inliers,                                                                      \
+    "a pose that breaks the motion prior with fewer inliers than this and no second hypothesis "  \
+    "is replaced by the prediction itself, >= 0 (0 = off)")                                       \
   X(warp_gap, "frames between the current frame and the reference of the dense warp, >= 1")       \
   X(warp_stride, "grid step of the dense depth warp [px], >= 1")                                  \
   X(warp_window, "half-size of the depth-edge / min-depth window of the warp [px], >= 0")         \
@@ -69,6 +72,7 @@ using ds3d::slam::GeometricMotionStats;
   X(num_matches, "descriptor matches with the reference (reference depth)")        \
   X(num_pose_inliers, "PnP-RANSAC inliers")                                        \
   X(prior_replaced, "the motion prior replaced the largest-consensus pose")        \
+  X(prediction_held, "the pose is the motion prior's prediction")                  \
   X(num_tested, "keypoints with depth in both views that were chi2-tested")        \
   X(num_moving_keypoints, "tested keypoints above moving_chi2")                    \
   X(num_warp_tested, "grid pixels tested by the dense depth warp")                 \

@@ -49,6 +49,8 @@ void GeometricMotionParams::validate() const {
              ")");
   DS3D_CHECK(std::isfinite(max_acceleration) && max_acceleration >= 0, f,
              ": max_acceleration must be finite and >= 0 (got ", max_acceleration, ")");
+  DS3D_CHECK(hold_prediction_inliers >= 0, f, ": hold_prediction_inliers must be >= 0 (got ",
+             hold_prediction_inliers, ")");
   DS3D_CHECK(warp_stride >= 1, f, ": warp_stride must be >= 1 (got ", warp_stride, ")");
   DS3D_CHECK(warp_gap >= 1, f, ": warp_gap must be >= 1 (got ", warp_gap, ")");
   DS3D_CHECK(warp_window >= 0, f, ": warp_window must be >= 0 (got ", warp_window, ")");
@@ -483,9 +485,17 @@ void GeometricMotionSource::apply_motion_prior(const Work& work,
     og.push_back(obj[i]);
     ig.push_back(img[i]);
   }
-  if (static_cast<int>(og.size()) < params_.min_pose_inliers) return;
-  PoseHypothesis other = robust_pose(og, ig, K);
-  if (!other.ok || static_cast<int>(other.inliers.size()) < params_.min_pose_inliers) return;
+  PoseHypothesis other;
+  if (static_cast<int>(og.size()) >= params_.min_pose_inliers) other = robust_pose(og, ig, K);
+  if (!other.ok || static_cast<int>(other.inliers.size()) < params_.min_pose_inliers) {
+    // No second hypothesis. A weak first one is more likely a near mover than a camera
+    // accelerating beyond the bound: the prediction is the pose (constant velocity).
+    if (static_cast<int>(best.inliers.size()) < params_.hold_prediction_inliers) {
+      best.T_cur_ref = *pred;
+      stats_.prediction_held = true;
+    }
+    return;
+  }
   refine_pose(og, ig, K, other);
   if (centre_gap(other.T_cur_ref, *pred) < 0.5 * gap_best) {
     best = std::move(other);
