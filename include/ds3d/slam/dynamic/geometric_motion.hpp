@@ -13,7 +13,8 @@
 ///  2. robust pose: PnP-RANSAC (EPnP minimal sets, then Levenberg-Marquardt on the inliers) of
 ///     the reference's 3-D points against the current pixels, leaving out points inside objects
 ///     already known to move; where that pose breaks the constant-velocity prediction, a second
-///     one from the matches the prediction explains may replace it (`max_acceleration`), and
+///     one from the matches the prediction explains, refined with the prediction as a prior on
+///     the camera centre, may replace it (`max_acceleration`), and
 ///     where no second one exists and the first is a weak consensus, the prediction itself is the
 ///     pose (`hold_prediction_inliers`). The pose is *trusted* only with at least
 ///     `min_pose_inliers` inliers forming at least `min_inlier_ratio` of the matches; otherwise
@@ -96,7 +97,10 @@ struct GeometricMotionParams {
   /// constant-velocity prediction (the previous frame's trusted motion over the same reference
   /// gap, scaled to this gap's dt [s]; until the source has trusted a first motion, rest: a
   /// camera starts from standing still), PnP-RANSAC runs again on the matches the prediction
-  /// explains (within 2× the inlier threshold); that pose replaces the first one when it has
+  /// explains (within 2× the inlier threshold), and that pose is refined on its inliers with the
+  /// prediction as a Gaussian prior on the camera centre (σ = max_acceleration · dt²; the
+  /// rotation free): in front of a far wall a shift and a rotation move the image alike, and
+  /// the matches alone leave the shift loose. It replaces the first pose when it has
   /// min_pose_inliers inliers and lies less than half as far from the prediction. A person
   /// walking across close to the camera moves it as a shift that a rotation makes fit the far
   /// background too, so the most inliers can be the person's (docs/dynamic.md). 10 m/s²: twice
