@@ -457,47 +457,6 @@ double centre_gap(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return (a.inverse() * b).translation().norm();
 }
 
-// T_cur_ref refined on the inliers as a maximum a posteriori estimate: their reprojection errors
-// (σ_px each) plus a Gaussian prior (σ_c [m]) that the camera centre lies at the prediction's.
-// The rotation is left free. In front of a far wall a sideways shift and a rotation move the
-// image alike; the matches then barely constrain the shift, and the prior settles it.
-// Gauss-Newton on the left perturbation of pose_plus (monocular residuals: bf is unused).
-Eigen::Isometry3d refine_towards_prediction(const std::vector<cv::Point3f>& obj,
-                                            const std::vector<cv::Point2f>& img,
-                                            const std::vector<int>& inliers,
-                                            const PinholeCamera& cs, Eigen::Isometry3d T,
-                                            const Eigen::Isometry3d& pred, double sigma_px,
-                                            double sigma_c) {
-  const StereoIntrinsics k{cs.fx, cs.fy, cs.cx, cs.cy, 40.0};
-  Observation o;
-  o.inv_sigma2 = 1.0 / (sigma_px * sigma_px);
-  const Eigen::Vector3d c_pred = pred.inverse().translation();
-  for (int it = 0; it < 10; ++it) {
-    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
-    Vector6d g = Vector6d::Zero();
-    for (const int i : inliers) {
-      const auto n = static_cast<std::size_t>(i);
-      o.pixel = Eigen::Vector2d(img[n].x, img[n].y);
-      double r[2];
-      Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J;
-      const Eigen::Vector3d p(obj[n].x, obj[n].y, obj[n].z);
-      if (reprojection_residual(k, T, p, o, r, J.data(), nullptr) == 0) continue;
-      H += J.transpose() * J;
-      g += J.transpose() * Eigen::Vector2d(r[0], r[1]);
-    }
-    // Camera centre c = −Rᵀt; under the left perturbation dc/dω = 0 and dc/dv = −Rᵀ.
-    const Eigen::Vector3d rc = (T.inverse().translation() - c_pred) / sigma_c;
-    const Eigen::Matrix3d Jc = -T.linear().transpose() / sigma_c;
-    H.bottomRightCorner<3, 3>() += Jc.transpose() * Jc;
-    g.tail<3>() += Jc.transpose() * rc;
-    const Vector6d delta = -H.ldlt().solve(g);
-    if (!delta.allFinite()) break;
-    T = pose_plus(T, delta);
-    if (delta.norm() < 1e-9) break;
-  }
-  return T;
-}
-
 }  // namespace
 
 void GeometricMotionSource::apply_motion_prior(const Work& work,
@@ -508,8 +467,16 @@ void GeometricMotionSource::apply_motion_prior(const Work& work,
   const std::optional<Eigen::Isometry3d> pred = predicted_T_cur_ref(work);
   if (!pred) return;
   const double dt = work.cur.timestamp - work.ref->timestamp;
+  // σ_px: the pixel noise the inlier threshold assumes; σ_c: the bound itself.
+  const double sigma_px = inlier_threshold() / std::sqrt(params_.chi2_2dof);
+  const double sigma_c = params_.max_acceleration * dt * dt;
   const double gap_best = centre_gap(best.T_cur_ref, *pred);
-  if (!(gap_best > params_.max_acceleration * dt * dt)) return;
+  if (!(gap_best > sigma_c)) {
+    // Within the bound: the pose is the maximum a posteriori one under the prediction.
+    best.T_cur_ref = ds3d::detail::refine_towards_prediction(
+        obj, img, best.inliers, work.cs, best.T_cur_ref, *pred, sigma_px, sigma_c);
+    return;
+  }
   // The largest consensus is far from the prediction: a near mover whose motion, with a
   // rotation, also fits the far background. The matches the prediction explains (within 2×
   // the inlier threshold) give the other hypothesis. In front of a far wall a wider window lets
@@ -539,10 +506,8 @@ void GeometricMotionSource::apply_motion_prior(const Work& work,
     return;
   }
   refine_pose(og, ig, K, other);
-  // σ_px: the pixel noise the inlier threshold assumes; σ_c: the bound itself.
-  other.T_cur_ref = refine_towards_prediction(og, ig, other.inliers, cs, other.T_cur_ref, *pred,
-                                              inlier_threshold() / std::sqrt(params_.chi2_2dof),
-                                              params_.max_acceleration * dt * dt);
+  other.T_cur_ref = ds3d::detail::refine_towards_prediction(
+      og, ig, other.inliers, cs, other.T_cur_ref, *pred, sigma_px, sigma_c);
   if (centre_gap(other.T_cur_ref, *pred) < 0.5 * gap_best) {
     best = std::move(other);
     stats_.prior_replaced = true;
@@ -781,3 +746,49 @@ void GeometricMotionSource::report_objects(const Work& work, DynamicObjects& out
 }
 
 }  // namespace ds3d::slam
+
+namespace ds3d::detail {
+
+// T_cur_ref refined on the inliers as a maximum a posteriori estimate: their reprojection errors
+// (σ_px each) plus a Gaussian prior (σ_c [m]) that the camera centre lies at the prediction's.
+// The rotation is left free. In front of a far wall a sideways shift and a rotation move the
+// image alike; the matches then barely constrain the shift, and the prior settles it.
+// Gauss-Newton on the left perturbation of pose_plus (monocular residuals: bf is unused).
+Eigen::Isometry3d refine_towards_prediction(const std::vector<cv::Point3f>& obj,
+                                            const std::vector<cv::Point2f>& img,
+                                            const std::vector<int>& inliers,
+                                            const PinholeCamera& camera, Eigen::Isometry3d T,
+                                            const Eigen::Isometry3d& pred, double sigma_px,
+                                            double sigma_c) {
+  if (!(sigma_px > 0.0) || !(sigma_c > 0.0)) return T;
+  const slam::StereoIntrinsics k{camera.fx, camera.fy, camera.cx, camera.cy, 40.0};
+  slam::Observation o;
+  o.inv_sigma2 = 1.0 / (sigma_px * sigma_px);
+  const Eigen::Vector3d c_pred = pred.inverse().translation();
+  for (int it = 0; it < 10; ++it) {
+    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+    slam::Vector6d g = slam::Vector6d::Zero();
+    for (const int i : inliers) {
+      const auto n = static_cast<std::size_t>(i);
+      o.pixel = Eigen::Vector2d(img[n].x, img[n].y);
+      double r[2];
+      Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J;
+      const Eigen::Vector3d p(obj[n].x, obj[n].y, obj[n].z);
+      if (slam::reprojection_residual(k, T, p, o, r, J.data(), nullptr) == 0) continue;
+      H += J.transpose() * J;
+      g += J.transpose() * Eigen::Vector2d(r[0], r[1]);
+    }
+    // Camera centre c = −Rᵀt; under the left perturbation dc/dω = 0 and dc/dv = −Rᵀ.
+    const Eigen::Vector3d rc = (T.inverse().translation() - c_pred) / sigma_c;
+    const Eigen::Matrix3d Jc = -T.linear().transpose() / sigma_c;
+    H.bottomRightCorner<3, 3>() += Jc.transpose() * Jc;
+    g.tail<3>() += Jc.transpose() * rc;
+    const slam::Vector6d delta = -H.ldlt().solve(g);
+    if (!delta.allFinite()) break;
+    T = slam::pose_plus(T, delta);
+    if (delta.norm() < 1e-9) break;
+  }
+  return T;
+}
+
+}  // namespace ds3d::detail

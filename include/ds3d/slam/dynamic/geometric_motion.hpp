@@ -12,11 +12,11 @@
 ///     oldest one with a trusted pose);
 ///  2. robust pose: PnP-RANSAC (EPnP minimal sets, then Levenberg-Marquardt on the inliers) of
 ///     the reference's 3-D points against the current pixels, leaving out points inside objects
-///     already known to move; where that pose breaks the constant-velocity prediction, a second
-///     one from the matches the prediction explains, refined with the prediction as a prior on
-///     the camera centre, may replace it (`max_acceleration`), and
-///     where no second one exists and the first is a weak consensus, the prediction itself is the
-///     pose (`hold_prediction_inliers`). The pose is *trusted* only with at least
+///     already known to move, refined with the constant-velocity prediction as a prior on the
+///     camera centre; where that pose breaks the prediction, a second one from the matches the
+///     prediction explains, refined the same way, may replace it (`max_acceleration`), and where
+///     no second one exists and the first is a weak consensus, the prediction itself is the pose
+///     (`hold_prediction_inliers`). The pose is *trusted* only with at least
 ///     `min_pose_inliers` inliers forming at least `min_inlier_ratio` of the matches; otherwise
 ///     nothing new is flagged (an uncertain pose flags nothing rather than everything);
 ///  3. per matched keypoint with depth on both sides, a 3-dof χ² test of its residual
@@ -92,19 +92,20 @@ struct GeometricMotionParams {
   int depth_window = 2;           ///< half-size of the depth-spread window at keypoints [px], >= 0
   double min_inlier_ratio = 0.4;  ///< trusted pose: inliers / matches at least this, in [0, 1]
   int min_pose_inliers = 30;      ///< trusted pose: at least this many inliers, >= 6
-  /// Motion prior of the source's own ego-motion [m/s²], >= 0 (0 = off). When the pose with the
-  /// most inliers puts the camera centre farther than max_acceleration · dt² from the
-  /// constant-velocity prediction (the previous frame's trusted motion over the same reference
-  /// gap, scaled to this gap's dt [s]; until the source has trusted a first motion, rest: a
-  /// camera starts from standing still), PnP-RANSAC runs again on the matches the prediction
-  /// explains (within 2× the inlier threshold), and that pose is refined on its inliers with the
-  /// prediction as a Gaussian prior on the camera centre (σ = max_acceleration · dt²; the
-  /// rotation free): in front of a far wall a shift and a rotation move the image alike, and
-  /// the matches alone leave the shift loose. It replaces the first pose when it has
-  /// min_pose_inliers inliers and lies less than half as far from the prediction. A person
-  /// walking across close to the camera moves it as a shift that a rotation makes fit the far
-  /// background too, so the most inliers can be the person's (docs/dynamic.md). 10 m/s²: twice
-  /// the hand-held recordings' p99 deviation from constant velocity.
+  /// Motion prior of the source's own ego-motion [m/s²], >= 0 (0 = off). The constant-velocity
+  /// prediction is the previous frame's trusted motion over the same reference gap, scaled to
+  /// this gap's dt [s] (until the source has trusted a first motion, rest: a camera starts from
+  /// standing still). A pose with the most inliers whose camera centre lies within
+  /// max_acceleration · dt² of the prediction's is refined on its inliers with the prediction as
+  /// a Gaussian prior on the camera centre (σ = max_acceleration · dt², the rotation free). When
+  /// it lies farther, PnP-RANSAC runs again on the matches the prediction explains (within 2×
+  /// the inlier threshold), and that pose, refined the same way, replaces the first one when it
+  /// has min_pose_inliers inliers and lies less than half as far from the prediction. In front
+  /// of a far wall a shift and a rotation move the image alike, and the matches alone leave the
+  /// shift loose; a person walking across close to the camera moves it as a shift that a
+  /// rotation makes fit the far background too, so the most inliers can be the person's
+  /// (docs/dynamic.md). 10 m/s²: twice the hand-held recordings' p99 deviation from constant
+  /// velocity.
   double max_acceleration = 10.0;
   /// Weak-consensus rule of the motion prior [inliers], >= 0 (0 = off): when the pose with the
   /// most inliers breaks the max_acceleration bound, no second hypothesis of min_pose_inliers
@@ -301,4 +302,16 @@ namespace ds3d::detail {
 // Empty when a has no rows, b fewer than 2, or either is not 32 bytes wide. Used by
 // GeometricMotionSource; exposed for its test.
 std::vector<cv::DMatch> mutual_ratio_matches(const cv::Mat& a, const cv::Mat& b, float ratio);
+// The motion prior's pose refinement: T_cur_ref (reference points `obj` [m] seen at the
+// undistorted pixels `img` of `camera`) refined on `inliers` (indices into obj and img) as a
+// maximum a posteriori estimate, each reprojection error with σ_px [px] plus a Gaussian prior of
+// σ_c [m] that the camera centre lies at the prediction's; the rotation free. Gauss-Newton from
+// `T`, at most 10 steps; returns `T` unchanged for σ_px or σ_c not > 0 and stops at a
+// non-finite step. Used by GeometricMotionSource; exposed for its test.
+Eigen::Isometry3d refine_towards_prediction(const std::vector<cv::Point3f>& obj,
+                                            const std::vector<cv::Point2f>& img,
+                                            const std::vector<int>& inliers,
+                                            const PinholeCamera& camera, Eigen::Isometry3d T,
+                                            const Eigen::Isometry3d& pred, double sigma_px,
+                                            double sigma_c);
 }  // namespace ds3d::detail
