@@ -33,6 +33,7 @@
 #include <functional>
 #include <iostream>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -737,7 +738,8 @@ TEST(MutualRatioMatches, EqualsOpenCvBruteForceMatcher) {
 TEST(RefineTowardsPrediction, PriorSettlesTheShiftAndLeavesTheRotationFree) {
   const ds3d::PinholeCamera camera = ds3d::synth::SynthOptions{}.camera;
   Eigen::Isometry3d truth = Eigen::Isometry3d::Identity();  // T_cur_ref
-  truth.linear() = Eigen::AngleAxisd(0.1 * M_PI / 180.0, Eigen::Vector3d::UnitY()).matrix();
+  truth.linear() =
+      Eigen::AngleAxisd(0.1 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitY()).matrix();
   truth.translation() = Eigen::Vector3d(-0.006, 0.0, 0.0);
   std::vector<cv::Point3f> obj;
   std::vector<cv::Point2f> img;
