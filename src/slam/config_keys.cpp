@@ -281,9 +281,9 @@ std::vector<ConfigKey> geometric_keys() {
       key(
           "geometric.max_acceleration",
           [](auto& c) -> auto& { return c.geometric.max_acceleration; },
-          "[m/s^2] motion prior of the source's own pose: a pose farther than this * dt^2 from "
-          "the constant-velocity prediction may be replaced by one the prediction explains, >= 0 "
-          "(0 = off)"),
+          "[m/s^2] motion prior of the source's own pose: a pose within this * dt^2 of the "
+          "constant-velocity prediction is refined with it as a prior on the camera centre (that "
+          "sigma), a pose farther may be replaced by one the prediction explains, >= 0 (0 = off)"),
       key(
           "geometric.hold_prediction_inliers",
           [](auto& c) -> auto& { return c.geometric.hold_prediction_inliers; },

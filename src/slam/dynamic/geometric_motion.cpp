@@ -467,6 +467,7 @@ void GeometricMotionSource::apply_motion_prior(const Work& work,
   const std::optional<Eigen::Isometry3d> pred = predicted_T_cur_ref(work);
   if (!pred) return;
   const double dt = work.cur.timestamp - work.ref->timestamp;
+  const PinholeCamera& cs = work.cs;
   // σ_px: the pixel noise the inlier threshold assumes; σ_c: the bound itself.
   const double sigma_px = inlier_threshold() / std::sqrt(params_.chi2_2dof);
   const double sigma_c = params_.max_acceleration * dt * dt;
@@ -474,14 +475,13 @@ void GeometricMotionSource::apply_motion_prior(const Work& work,
   if (!(gap_best > sigma_c)) {
     // Within the bound: the pose is the maximum a posteriori one under the prediction.
     best.T_cur_ref = ds3d::detail::refine_towards_prediction(
-        obj, img, best.inliers, work.cs, best.T_cur_ref, *pred, sigma_px, sigma_c);
+        obj, img, best.inliers, cs, best.T_cur_ref, *pred, sigma_px, sigma_c);
     return;
   }
   // The largest consensus is far from the prediction: a near mover whose motion, with a
   // rotation, also fits the far background. The matches the prediction explains (within 2×
   // the inlier threshold) give the other hypothesis. In front of a far wall a wider window lets
   // the prediction explain the mover's matches as well, and the second RANSAC finds it again.
-  const PinholeCamera& cs = work.cs;
   const double gate = 2.0 * inlier_threshold();
   std::vector<cv::Point3f> og;
   std::vector<cv::Point2f> ig;
