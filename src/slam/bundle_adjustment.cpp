@@ -114,6 +114,28 @@ class PoseCost final : public ceres::CostFunction {
   Observation obs_;
 };
 
+// CentrePrior: (c − centre) / sigma with c = −Rᵀt; under the left perturbation of pose_plus
+// dc/dω = 0 and dc/dv = −Rᵀ.
+class CentrePriorCost final : public ceres::SizedCostFunction<3, 7> {
+ public:
+  explicit CentrePriorCost(const CentrePrior& prior) : prior_(prior) {}
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const Eigen::Isometry3d T = from_params(parameters[0]);
+    const Eigen::Vector3d r = (T.inverse().translation() - prior_.centre) / prior_.sigma;
+    std::copy(r.data(), r.data() + 3, residuals);
+    if (jacobians != nullptr && jacobians[0] != nullptr) {
+      Eigen::Map<Eigen::Matrix<double, 3, 7, Eigen::RowMajor>> j(jacobians[0]);
+      j.setZero();
+      j.block<3, 3>(0, 3) = -T.linear().transpose() / prior_.sigma;
+    }
+    return true;
+  }
+
+ private:
+  CentrePrior prior_;
+};
+
 // Bundle adjustment: pose (7) and point (3).
 class BaCost final : public ceres::CostFunction {
  public:
@@ -260,10 +282,19 @@ void LocalBaParams::validate() const {
 PoseOptimizationResult optimize_pose(const StereoIntrinsics& k, const Eigen::Isometry3d& initial,
                                      const std::vector<Eigen::Vector3d>& points,
                                      const std::vector<Observation>& observations,
-                                     const PoseOptimizerParams& params) {
+                                     const PoseOptimizerParams& params, const CentrePrior& prior) {
   params.validate();
   DS3D_CHECK(points.size() == observations.size(), "ds3d::slam::optimize_pose: ", points.size(),
              " points but ", observations.size(), " observations");
+  DS3D_CHECK(std::isfinite(prior.sigma) && prior.sigma >= 0,
+             "ds3d::slam::optimize_pose: prior.sigma must be finite and >= 0 (got ", prior.sigma,
+             ")");
+  DS3D_CHECK(std::isfinite(prior.huber) && prior.huber >= 0,
+             "ds3d::slam::optimize_pose: prior.huber must be finite and >= 0 (got ", prior.huber,
+             ")");
+  DS3D_CHECK(prior.sigma == 0 || prior.centre.allFinite(),
+             "ds3d::slam::optimize_pose: prior.centre must be finite (got ",
+             prior.centre.transpose(), ")");
   const std::size_t n = points.size();
   PoseOptimizationResult result;
   result.T_cam_world = initial;
@@ -275,6 +306,8 @@ PoseOptimizationResult optimize_pose(const StereoIntrinsics& k, const Eigen::Iso
   for (std::size_t i = 0; i < n; ++i)
     costs.push_back(std::make_unique<PoseCost>(k, points[i], observations[i]));
   PoseManifold manifold;
+  CentrePriorCost prior_cost(prior);
+  ceres::HuberLoss prior_loss(prior.huber > 0 ? prior.huber : 1.0);
   ceres::HuberLoss huber_mono(std::sqrt(params.chi2_mono));
   ceres::HuberLoss huber_stereo(std::sqrt(params.chi2_stereo));
   Params7 x = to_params(initial);
@@ -293,6 +326,9 @@ PoseOptimizationResult optimize_pose(const StereoIntrinsics& k, const Eigen::Iso
       ++used;
     }
     if (used < 3) break;
+    if (prior.sigma > 0) {
+      problem.AddResidualBlock(&prior_cost, prior.huber > 0 ? &prior_loss : nullptr, x.data());
+    }
     ceres::Solver::Summary summary;
     ceres::Solve(options, &problem, &summary);
     const Eigen::Isometry3d T = from_params(x.data());

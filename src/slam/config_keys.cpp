@@ -91,6 +91,11 @@ std::vector<ConfigKey> frontend_keys() {
           "[rad/s^2] a tracked rotation farther than this x dt^2 from the prediction's is "
           "rejected (0 = off)"),
       key(
+          "frontend.prior_acceleration",
+          [](auto& c) -> auto& { return c.frontend.prior_acceleration; },
+          "[m/s^2] with a dynamic source, tracking adds a prior on the camera centre at the "
+          "constant-velocity prediction, sigma = this x dt^2, Huber beyond 2 sigma (0 = off)"),
+      key(
           "frontend.depth_edge_ratio", [](auto& c) -> auto& { return c.frontend.depth_edge_ratio; },
           "keypoints on a depth step (far > (1 + ratio) x near) at a dynamic region are dropped (0 "
           "= off)"),

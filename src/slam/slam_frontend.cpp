@@ -63,6 +63,8 @@ void FrontendConfig::validate() const {
   DS3D_CHECK(std::isfinite(max_angular_acceleration) && max_angular_acceleration >= 0, f,
              ": max_angular_acceleration must be finite and >= 0 (got ", max_angular_acceleration,
              ")");
+  DS3D_CHECK(std::isfinite(prior_acceleration) && prior_acceleration >= 0, f,
+             ": prior_acceleration must be finite and >= 0 (got ", prior_acceleration, ")");
   DS3D_CHECK(std::isfinite(depth_edge_ratio) && depth_edge_ratio >= 0, f,
              ": depth_edge_ratio must be finite and >= 0 (got ", depth_edge_ratio, ")");
   DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");
@@ -93,6 +95,8 @@ SlamFrontend::Impl::Impl(FrontendConfig c, std::shared_ptr<DynamicObjectSource> 
   if (!source) source = std::make_shared<NoDynamicObjects>();
   confirm_far =
       cfg.confirm_far_points && dynamic_cast<const NoDynamicObjects*>(source.get()) == nullptr;
+  motion_prior =
+      cfg.prior_acceleration > 0 && dynamic_cast<const NoDynamicObjects*>(source.get()) == nullptr;
   if (!masker) masker = std::make_shared<NoDynamicMasker>();
   k = {cfg.camera.fx, cfg.camera.fy, cfg.camera.cx, cfg.camera.cy, cfg.bf};
   for (int l = 0; l < cfg.orb.num_levels; ++l) {

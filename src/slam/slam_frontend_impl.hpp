@@ -212,6 +212,7 @@ struct SlamFrontend::Impl {
   std::shared_ptr<DynamicObjectSource> source;
   std::shared_ptr<DynamicFeatureMasker> masker;
   bool confirm_far = false;  // cfg.confirm_far_points and a source other than "none"
+  bool motion_prior = false;  // cfg.prior_acceleration > 0 and a source other than "none"
 
   std::vector<Keyframe> keyframes;  // indexed by id; culled ones stay (bad = true)
   std::size_t live_keyframes = 0;
@@ -231,6 +232,7 @@ struct SlamFrontend::Impl {
   bool velocity_trusted = false;  // velocity from two frames tracked normally (the motion gate)
   bool last_normal = false;       // the last frame was tracked, not relocalised or re-anchored
   Eigen::Isometry3d velocity = Eigen::Isometry3d::Identity();
+  CentrePrior prior;  // FrontendConfig::prior_acceleration for this frame (sigma 0 = none)
   int ref_kf = -1;
   int last_kf_frame = 0;  // frame_counter at the last keyframe
   int lost_count = 0;
@@ -298,6 +300,7 @@ struct SlamFrontend::Impl {
                            std::size_t stamp);
   int match_keyframe(const Keyframe& kf, FrameData& f) const;
   int optimize_frame(FrameData& f, Eigen::Isometry3d& T_cw) const;
+  void set_prior(double dt);
   bool pnp_ransac(const FrameData& f, Eigen::Isometry3d& T_cw) const;
   void forget_seen(const std::vector<int>& cand);
   void clear_frame_marks();

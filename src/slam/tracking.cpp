@@ -159,7 +159,7 @@ int SlamFrontend::Impl::optimize_frame(FrameData& f, Eigen::Isometry3d& T_cw) co
     idx.push_back(i);
   }
   if (pw.size() < 3) return 0;
-  const auto r = optimize_pose(k, T_cw, pw, obs, cfg.pose);
+  const auto r = optimize_pose(k, T_cw, pw, obs, cfg.pose, prior);
   T_cw = r.T_cam_world;
   for (std::size_t j = 0; j < idx.size(); ++j) {
     if (r.inlier[j] == 0) f.points[idx[j]] = -1;
@@ -356,6 +356,16 @@ int SlamFrontend::Impl::track_local_map(FrameData& f, Eigen::Isometry3d& T_cw) {
   return inliers;
 }
 
+// FrontendConfig::prior_acceleration: the prior of this frame's pose-only optimisations, at the
+// constant-velocity prediction when the velocity comes from two frames tracked in a row.
+void SlamFrontend::Impl::set_prior(double dt) {
+  prior.sigma = 0;
+  if (!motion_prior || !velocity_trusted || !last_tracked || !(dt > 0)) return;
+  prior.centre = (velocity * last_T_cw).inverse().translation();
+  prior.sigma = cfg.prior_acceleration * dt * dt;
+  prior.huber = 2.0;  // beyond 2 σ a constant pull: matches that contradict the prediction win
+}
+
 // FrontendConfig::max_acceleration / max_angular_acceleration: can the camera have moved from the
 // constant-velocity prediction `pred` to `T_cw` in the `dt` seconds since the last frame?
 bool SlamFrontend::Impl::plausible(const Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred,
@@ -466,6 +476,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
   } else {
     bool relocalized = false;
     bool recovered = false;
+    set_prior(in.timestamp - prev_ts);
     if (last_tracked && velocity_valid) ok = track_motion_model(f, T_cw);
     if (!ok && last_tracked) {
       T_cw = last_T_cw;
@@ -475,6 +486,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
       ok = track_last_frame(f, T_cw);
       res.odometry = ok;
     }
+    if (!ok) prior.sigma = 0;  // relocalisation searches without the prediction
     if (!ok && !last_tracked && lost_count > 0 && cfg.recover_by_projection) {
       T_cw = last_T_cw;
       ok = recover_by_projection(f, T_cw);

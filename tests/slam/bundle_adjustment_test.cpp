@@ -3,6 +3,8 @@
 #include "ds3d/slam/bundle_adjustment.hpp"
 
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -233,6 +235,62 @@ TEST(OptimizePose, RejectsBadInput) {
   p.chi2_mono = std::nan("");
   EXPECT_THROW((void)ds3d::slam::optimize_pose(kK, s.truth, s.points, s.obs, p),
                ds3d::InvalidArgument);
+}
+
+// A wall 4 m in front of the camera seen without depth: a sideways shift of the camera and a
+// rotation of shift / 4 m move its image alike, so the matches leave that direction loose.
+struct FarWall {
+  Eigen::Isometry3d truth = make_pose({0.01, -0.02, 0.005}, {0.1, -0.05, 0.2});
+  std::vector<Eigen::Vector3d> points;
+  std::vector<Observation> obs;
+};
+
+FarWall make_far_wall(int seed) {
+  ds3d::test::Rng rng(static_cast<std::uint64_t>(seed));
+  FarWall w;
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Vector3d pc(rng.uniform(-1.5, 1.5), rng.uniform(-1.0, 1.0), rng.uniform(3.9, 4.1));
+    const Eigen::Vector3d pw = w.truth.inverse() * pc;
+    Observation o = observe(w.truth, pw, false);
+    o.pixel += Eigen::Vector2d(rng.normal(), rng.normal());
+    w.points.push_back(pw);
+    w.obs.push_back(o);
+  }
+  return w;
+}
+
+Eigen::Vector3d centre(const Eigen::Isometry3d& T_cw) { return T_cw.inverse().translation(); }
+
+TEST(OptimizePose, CentrePriorSettlesTheCentreAndLeavesTheRotationFree) {
+  const FarWall w = make_far_wall(21);
+  const auto free = ds3d::slam::optimize_pose(kK, w.truth, w.points, w.obs);
+  // A loose prior changes nothing; a tight one puts the centre where it says, 3 cm sideways,
+  // and the rotation takes up the shift: every observation stays an inlier.
+  ds3d::slam::CentrePrior prior{centre(w.truth) + Eigen::Vector3d(0.03, 0.0, 0.0), 100.0};
+  const auto loose = ds3d::slam::optimize_pose(kK, w.truth, w.points, w.obs, {}, prior);
+  EXPECT_LT((centre(loose.T_cam_world) - centre(free.T_cam_world)).norm(), 1e-6);
+  prior.sigma = 1e-4;
+  const auto tight = ds3d::slam::optimize_pose(kK, w.truth, w.points, w.obs, {}, prior);
+  EXPECT_LT((centre(tight.T_cam_world) - prior.centre).norm(), 1e-3);
+  EXPECT_GT(rotation_error_rad(tight.T_cam_world, w.truth), 0.005);  // ≈ 0.03 m / 4 m
+  EXPECT_GE(tight.num_inliers, free.num_inliers - 5);
+  EXPECT_TRUE(tight.T_cam_world.matrix().allFinite());
+}
+
+TEST(OptimizePose, RejectsABadCentrePrior) {
+  const FarWall w = make_far_wall(22);
+  for (const double sigma : {-1.0, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    const ds3d::slam::CentrePrior prior{Eigen::Vector3d::Zero(), sigma};
+    EXPECT_THROW((void)ds3d::slam::optimize_pose(kK, w.truth, w.points, w.obs, {}, prior),
+                 ds3d::InvalidArgument)
+        << sigma;
+  }
+  const ds3d::slam::CentrePrior nan_centre{Eigen::Vector3d(0, std::nan(""), 0), 0.01};
+  EXPECT_THROW((void)ds3d::slam::optimize_pose(kK, w.truth, w.points, w.obs, {}, nan_centre),
+               ds3d::InvalidArgument);
+  // sigma 0 is no prior, whatever the centre.
+  const ds3d::slam::CentrePrior off{Eigen::Vector3d(0, std::nan(""), 0), 0.0};
+  EXPECT_NO_THROW((void)ds3d::slam::optimize_pose(kK, w.truth, w.points, w.obs, {}, off));
 }
 
 TEST(LocalBundleAdjustment, ReducesErrorWithFixedGauge) {

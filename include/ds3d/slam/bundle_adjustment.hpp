@@ -102,6 +102,17 @@ struct PoseOptimizationResult {
   int num_inliers = 0;               ///< count of ones in `inlier`
 };
 
+/// A Gaussian prior on the camera centre c = −Rᵀt of optimize_pose: the residual
+/// (c − centre) / sigma joins the reprojection terms; the rotation is free. sigma = 0 means no
+/// prior.
+struct CentrePrior {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  ///< expected camera centre [m, world]
+  double sigma = 0.0;  ///< standard deviation [m] of each coordinate, >= 0 (0 = no prior)
+  /// Huber threshold of the prior's residual norm, in units of sigma, >= 0 (0 = quadratic):
+  /// beyond it the prior's pull stays constant, so matches that clearly contradict it win.
+  double huber = 0.0;
+};
+
 /// Optimises one camera pose against fixed 3-D points with Ceres: Huber loss (δ² = the χ²
 /// threshold), `rounds` rounds after each of which every observation is re-classified by χ²
 /// (outliers are excluded from the next round but may come back); the last round has no robust
@@ -111,14 +122,19 @@ struct PoseOptimizationResult {
 /// @param points   world points, one per observation
 /// @param observations same size as `points`
 /// @param params   χ² thresholds, rounds and iterations (PoseOptimizerParams)
-/// @throws ds3d::InvalidArgument if the sizes differ or params are bad.
+/// @param prior    optional prior on the camera centre (CentrePrior; sigma 0 = none); it
+///        settles the pose's weakly observed directions (a shift paired with a rotation in front
+///        of a far wall) and does not take part in the χ² classification
+/// @throws ds3d::InvalidArgument if the sizes differ, params are bad, prior.sigma or
+///         prior.huber is negative or not finite, or prior.centre is not finite while sigma > 0.
 /// @note O(rounds · iterations · n). Deterministic. With fewer than 3 observations the
 ///       initial pose is returned unchanged with every observation marked as an outlier.
 [[nodiscard]] PoseOptimizationResult optimize_pose(const StereoIntrinsics& k,
                                                    const Eigen::Isometry3d& initial,
                                                    const std::vector<Eigen::Vector3d>& points,
                                                    const std::vector<Observation>& observations,
-                                                   const PoseOptimizerParams& params = {});
+                                                   const PoseOptimizerParams& params = {},
+                                                   const CentrePrior& prior = {});
 
 /// An observation of point `point` in keyframe `keyframe` (indices into the BA input vectors).
 struct BaObservation {

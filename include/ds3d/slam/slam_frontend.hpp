@@ -123,6 +123,17 @@ struct FrontendConfig {
   /// 60 rad/s², are far beyond a hand-held or robot-mounted camera (docs/slam.md, "Motion gate").
   double max_acceleration = 60;
   double max_angular_acceleration = 60;  ///< see max_acceleration
+  /// Motion prior [m/s²], >= 0 (0 = off): with a dynamic source (not "none"), every pose-only
+  /// optimisation of a frame whose constant-velocity prediction comes from two frames tracked in
+  /// a row (as the motion gate's) adds a prior that the camera centre lies at the prediction's,
+  /// σ = prior_acceleration · dt² per coordinate, Gaussian within 2 σ and with a constant pull
+  /// beyond (Huber), the rotation free: the maximum a posteriori pose. In front of a far wall the
+  /// matches leave a sideways shift paired with a rotation of shift / distance loose, and a few
+  /// matches on a moving person the source missed then pull the pose along with them; the prior
+  /// settles that direction. Without a source the people's matches shape the velocity too, and
+  /// the prior would carry their drag on (docs/slam.md, "Motion prior"). Relocalisation and the
+  /// odometry fallback do not use it.
+  double prior_acceleration = 10;
   /// Keypoints on an occluding contour at a dynamic region are removed from tracking and
   /// mapping (0 = off), >= 0: those with a depth sample (at 4 and 8 px × their level's scale,
   /// 16 directions, and their own pixel) in a source box's image rectangle or on its pixel mask
