@@ -111,6 +111,11 @@ std::vector<ConfigKey> frontend_keys() {
           "frontend.refine_rounds", [](auto& c) -> auto& { return c.frontend.refine_rounds; },
           "after that refinement: rounds of (move every map point using all"),
       key(
+          "frontend.retrack_first_frames",
+          [](auto& c) -> auto& { return c.frontend.retrack_first_frames; },
+          "finish(): the first this many frames are matched again against the final map, "
+          "backwards from the frame after them (0 = off), >= 0"),
+      key(
           "frontend.smooth_acceleration",
           [](auto& c) -> auto& { return c.frontend.smooth_acceleration; },
           "[m/s^2] finish(): smooth the frame poses with this 1-sigma camera acceleration (0 = "

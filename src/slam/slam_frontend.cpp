@@ -68,6 +68,8 @@ void FrontendConfig::validate() const {
   DS3D_CHECK(std::isfinite(depth_edge_ratio) && depth_edge_ratio >= 0, f,
              ": depth_edge_ratio must be finite and >= 0 (got ", depth_edge_ratio, ")");
   DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");
+  DS3D_CHECK(retrack_first_frames >= 0, f, ": retrack_first_frames must be >= 0 (got ",
+             retrack_first_frames, ")");
   DS3D_CHECK(std::isfinite(smooth_acceleration) && smooth_acceleration >= 0, f,
              ": smooth_acceleration must be >= 0 (got ", smooth_acceleration, ")");
   DS3D_CHECK(std::isfinite(keyframe_ref_ratio) && keyframe_ref_ratio > 0 && keyframe_ref_ratio <= 1,
@@ -130,6 +132,50 @@ void SlamFrontend::Impl::refine_frame_poses(const PoseOptimizerParams& params) {
       r.T_c_ref = opt.T_cam_world * T_rw.inverse();
     }
   }
+}
+
+// FrontendConfig::retrack_first_frames: the first frames matched again against the final map,
+// backwards, each from the new pose of the frame after it. Their online poses may have followed
+// people that the first map held and the final map no longer does.
+void SlamFrontend::Impl::retrack_first_frames() {
+  if (first_frames.empty()) return;
+  std::size_t next = first_frames.back().first + 1;
+  while (next < records.size() && !(records[next].tracked && records[next].ref_kf >= 0)) ++next;
+  if (next >= records.size()) {
+    first_frames.clear();
+    return;
+  }
+  prior.sigma = 0;  // no motion prior: the neighbour's pose only starts the search
+  Eigen::Isometry3d T_next = record_pose(records[next]);
+  std::vector<int> cand;
+  for (std::size_t j = 0; j < points.size(); ++j) {
+    if (!points[j].bad) cand.push_back(static_cast<int>(j));
+  }
+  std::size_t stamp = frame_counter;  // marks of searches after the last frame
+  for (auto it = first_frames.rbegin(); it != first_frames.rend(); ++it) {
+    FrameRecord& r = records[it->first];
+    if (!r.tracked || r.ref_kf < 0) continue;
+    FrameData& f = it->second;
+    Eigen::Isometry3d T = T_next;
+    search_by_projection(f, T, cand, 15.0, false, stamp++);
+    if (optimize_frame(f, T) < cfg.min_tracked_inliers) continue;
+    r.T_c_ref = T * keyframes[static_cast<std::size_t>(r.ref_kf)].T_cw.inverse();
+    if (cfg.refine_frame_poses && !r.keyframe) {  // what refine_frame_poses() starts from
+      r.matches.clear();
+      for (std::size_t j = 0; j < f.size(); ++j) {
+        if (f.points[j] >= 0) r.matches.emplace_back(f.points[j], observation(f, j));
+      }
+    }
+    T_next = T;
+  }
+  for (auto& p : points) {
+    if (p.last_frame_seen != std::numeric_limits<std::size_t>::max() &&
+        p.last_frame_seen >= frame_counter) {
+      p.last_frame_seen = std::numeric_limits<std::size_t>::max();
+    }
+  }
+  first_frames.clear();
+  first_frames.shrink_to_fit();
 }
 
 // A record's pose in the world: relative to its reference keyframe where it has one.
@@ -365,6 +411,7 @@ void SlamFrontend::finish() {
     impl_->launch_ba(local, {0}, pts, false, params);
     impl_->apply_ba_if_due(true);
   }
+  impl_->retrack_first_frames();
   if (impl_->cfg.refine_frame_poses) {
     const double c0 = thread_cpu_ms();
     impl_->refine_frame_poses(impl_->cfg.pose);

@@ -254,6 +254,8 @@ struct SlamFrontend::Impl {
     std::vector<std::pair<int, Observation>> matches;  // kept only for refine_frame_poses
   };
   std::vector<FrameRecord> records;
+  // FrontendConfig::retrack_first_frames: (record index, features) of the first frames.
+  std::vector<std::pair<std::size_t, FrameData>> first_frames;
 
   std::optional<BaJob> ba_job;
   std::size_t ba_count = 0;
@@ -355,6 +357,7 @@ struct SlamFrontend::Impl {
   // ---- slam_frontend.cpp: finish()'s refinement, and each frame's pose in the world
   [[nodiscard]] Eigen::Isometry3d record_pose(const FrameRecord& r) const;
   void refine_frame_poses(const PoseOptimizerParams& params);
+  void retrack_first_frames();
   void refine_points_from_frames();
   void smooth_frame_poses();
 };

@@ -453,6 +453,9 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
     }
   }
   FrameData f = make_frame_data(pf);
+  if (frame_counter < static_cast<std::size_t>(cfg.retrack_first_frames)) {
+    first_frames.emplace_back(records.size(), f);
+  }
   int n_depth = 0;
   for (const float d : f.depth) n_depth += d > 0 ? 1 : 0;
 

@@ -163,6 +163,17 @@ struct FrontendConfig {
   bool refine_frame_poses = true;
   int refine_rounds = 2;  ///< after that refinement: rounds of (move every map point using all
                           ///< frames' matches, poses fixed; refine the frames again), >= 0
+  /// finish(), after the global BA and before the refinement: the first this many input frames
+  /// are matched again by projection against the final map, from the last of them back to the
+  /// first, each starting from the new pose of the frame after it (the first tracked frame after
+  /// them: its own pose); a frame takes its new pose and matches when it keeps
+  /// min_tracked_inliers inliers. The first frames are tracked before any velocity exists and,
+  /// with a source that needs a few frames to flag (geometric), before anything is flagged:
+  /// where people fill the first map, the camera follows them for a few frames, while the final
+  /// map has dropped their points (docs/stress.md). Keeps those frames' features until finish()
+  /// (about 100 kB a frame). 0 = off (the default: on the recorded Bonn slices the online poses
+  /// were the better ones, docs/stress.md), >= 0; 30 is the value measured.
+  int retrack_first_frames = 0;
   /// [m/s²] After that refinement, finish() smooths the poses of all tracked frames (keyframes'
   /// frames included; keyframe_trajectory() keeps BA's) against the final map with this 1-σ of
   /// the camera's acceleration (smooth_poses(), pose_smoothing.hpp); 0 = off. A hand-held or
@@ -327,11 +338,13 @@ class SlamFrontend {
 
   /// Waits for the mapping thread and applies any pending local BA, then (if
   /// config.merge_segments) moves re-anchored map segments back onto the earlier map, then (if
-  /// config.final_global_ba) a global BA over all keyframes, then (if config.refine_frame_poses)
-  /// re-optimises each tracked non-keyframe pose against the final map and smooths them, then (if
-  /// config.interpolate_lost) interpolates the lost frames the map continues after. Call after the
-  /// last frame; trajectory() reflects it. @note O(keyframes · points) for the global BA (about a
-  /// second for 400 frames) plus one pose-only optimisation per frame (a few ms each).
+  /// config.final_global_ba) a global BA over all keyframes, then (if
+  /// config.retrack_first_frames) matches the first frames again against the final map, then (if
+  /// config.refine_frame_poses) re-optimises each tracked non-keyframe pose against the final map
+  /// and smooths them, then (if config.interpolate_lost) interpolates the lost frames the map
+  /// continues after. Call after the last frame; trajectory() reflects it. @note O(keyframes ·
+  /// points) for the global BA (about a second for 400 frames) plus one pose-only optimisation
+  /// per frame (a few ms each).
   void finish();
 
   /// One pose per tracked-or-not input frame, in input order. Each frame's pose is stored relative
