@@ -168,11 +168,9 @@ void SlamFrontend::Impl::retrack_first_frames() {
     }
     T_next = T;
   }
-  for (auto& p : points) {
-    if (p.last_frame_seen != std::numeric_limits<std::size_t>::max() &&
-        p.last_frame_seen >= frame_counter) {
+  for (auto& p : points) {  // clear the searches' marks (unmarked is max())
+    if (p.last_frame_seen >= frame_counter)
       p.last_frame_seen = std::numeric_limits<std::size_t>::max();
-    }
   }
   first_frames.clear();
   first_frames.shrink_to_fit();
