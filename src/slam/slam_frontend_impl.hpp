@@ -211,7 +211,7 @@ struct SlamFrontend::Impl {
   std::vector<double> inv_sigma2;  // per level
   std::shared_ptr<DynamicObjectSource> source;
   std::shared_ptr<DynamicFeatureMasker> masker;
-  bool confirm_far = false;  // cfg.confirm_far_points and a source other than "none"
+  bool confirm_far = false;   // cfg.confirm_far_points and a source other than "none"
   bool motion_prior = false;  // cfg.prior_acceleration > 0 and a source other than "none"
 
   std::vector<Keyframe> keyframes;  // indexed by id; culled ones stay (bad = true)
