@@ -133,7 +133,33 @@ def test_generation_is_deterministic(tiny, tmp_path):
         np.testing.assert_array_equal(a[i]["label"], b[i]["label"])
 
 
+def test_crowd_share_draws_crowd_scenes_with_their_carried_objects(tmp_path):
+    summary = data.generate(tmp_path, "train", frames=4, seed=5, frames_per_scene=2, shard_size=8,
+                            crowd_share=1.0)
+    ds = data.HtxDataset(tmp_path)
+    assert summary["crowd_share"] == 1.0 and len(ds) == 4
+    infos = [ds[i]["info"] for i in range(len(ds))]
+    assert all(i["scenario"] in data.CROWD_SCENARIOS and 3 <= i["humans"] <= 6 for i in infos)
+    assert summary["boxes"] > 0
+    # Carried boards, boxes and bags are human pixels inside their carrier's box, so nearly every
+    # human point is a foreground label (the rest: people with too few points to be a label).
+    human = np.concatenate([ds[i]["human"] > 0 for i in range(len(ds))])
+    fg = np.concatenate([ds[i]["label"] == 1 for i in range(len(ds))])
+    assert human.sum() > 100 and (human & fg).sum() > 0.9 * human.sum()
+
+
+def test_crowd_share_zero_keeps_the_scene_stream(tiny, tmp_path):
+    out, _ = tiny
+    data.generate(tmp_path, "train", frames=6, seed=3, frames_per_scene=3, shard_size=4, crowd_share=0.0)
+    a, b = data.HtxDataset(out), data.HtxDataset(tmp_path)
+    assert "crowd_share" not in b.info
+    for i in range(len(a)):
+        np.testing.assert_array_equal(a[i]["points"], b[i]["points"])
+
+
 def test_bad_arguments_raise(tmp_path):
+    with pytest.raises(ValueError, match="crowd_share"):
+        data.generate(tmp_path, "train", frames=1, seed=1, crowd_share=1.5)
     with pytest.raises(ValueError, match="frames"):
         data.generate(tmp_path, "train", frames=0, seed=1)
     with pytest.raises(ValueError, match="split"):

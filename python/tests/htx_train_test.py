@@ -120,6 +120,30 @@ def test_checkpoint_model_exports(tiny, tmp_path):
     assert out.shape[1] == 9 and np.isfinite(out).all()
 
 
+def test_init_fine_tunes_the_exported_network(tiny, tmp_path):
+    # A weights file to start from: one step of a fresh run, exported.
+    train.main(_args(tiny, tmp_path / "base", 1))
+    w = tmp_path / "w.safetensors"
+    train.export_checkpoint(tmp_path / "base" / "checkpoint.pt", w, 0.5)
+    # Fine-tuning with a vanishing learning rate must export the same network again: every
+    # BatchNorm keeps the folded identity statistics (batch statistics would replace them).
+    tr = train.main(_args(tiny, tmp_path / "ft", 2, ["--init", str(w), "--lr", "1e-12", "--head-dropout", "0"]))
+    assert all(not m.training for m in tr.model.modules() if isinstance(m, torch.nn.BatchNorm1d))
+    w2 = tmp_path / "w2.safetensors"
+    train.export_checkpoint(tmp_path / "ft" / "checkpoint.pt", w2, 0.5)
+    from ds3d.htx import read_safetensors
+    a, _ = read_safetensors(w)
+    b, _ = read_safetensors(w2)
+    assert a.keys() == b.keys()
+    for k in a:
+        np.testing.assert_allclose(a[k], b[k], rtol=1e-5, atol=1e-6, err_msg=k)
+    # With a real learning rate the fine-tune moves the weights.
+    tr = train.main(_args(tiny, tmp_path / "ft2", 2, ["--init", str(w), "--lr", "1e-3"]))
+    train.export_checkpoint(tmp_path / "ft2" / "checkpoint.pt", w2, 0.5)
+    c, _ = read_safetensors(w2)
+    assert any(not np.allclose(a[k], c[k]) for k in a)
+
+
 def test_bad_arguments_exit(tiny, tmp_path):
     with pytest.raises(SystemExit):
         train.parse_args(["--data", str(tiny), "--out", str(tmp_path), "--steps", "0"])

@@ -29,6 +29,10 @@ SCENARIOS = ("walking_static", "walking_xyz", "walking_halfsphere", "walking_rpy
 # Sampling weight of each scenario: mostly walkers (the dynamic sequences), some seated people and
 # a few empty rooms so the detector learns to report nothing.
 SCENARIO_WEIGHTS = (0.17, 0.2, 0.14, 0.14, 0.12, 0.13, 0.1)
+# Crowd scenes (generate's crowd_share): 3-6 people passing 0.5-1.5 m from a handheld camera, cut
+# by the image edge, carrying boards, boxes and bags (the carried object is part of its carrier's
+# box and human pixels), with motion blur. Drawn uniformly.
+CROWD_SCENARIOS = ("crowd_cross", "crowd_board", "crowd_start", "crowd_handheld")
 MAX_POINTS = 4096          # spec §6.1 step 5: at most this many points go to the network
 MIN_BOX_POINTS = 5         # a humanoid is a label when it holds >= this many input points
 TALL = 1.85                # [m] test-only body heights (train scenes never hold taller walkers)
@@ -329,19 +333,23 @@ def scene_seeds(split, count, base_seed):
     return range(base_seed + off, base_seed + off + count)
 
 
-def generate(out_dir, split, frames, seed, frames_per_scene=8, shard_size=256, log=None):
+def generate(out_dir, split, frames, seed, frames_per_scene=8, shard_size=256, log=None,
+             crowd_share=0.0):
     """Generates ``frames`` samples of ``split`` ('train', 'val' or 'test') into ``out_dir``/*.npz.
 
     Scenes: scenario drawn by SCENARIO_WEIGHTS, 0-4 humanoids (static_room: 0), a room size drawn
     uniformly from ROOM_RANGE and 0-MAX_EXTRA_FURNITURE free-standing chairs, tables and floor
     lamps (hard negatives), a 90 s sequence per scene of which ``frames_per_scene`` random frames
-    are used (varied poses and gaits).
+    are used (varied poses and gaits). With ``crowd_share`` in (0, 1], that share of the scenes
+    (drawn per scene) is one of CROWD_SCENARIOS instead, with the scenario's own people (3-6).
     Train scenes holding a walker taller than TALL metres are skipped (test keeps every size, so
     test bodies include sizes never trained on). Deterministic for (split, seed).
     Returns a summary dict.
     """
     import ds3d
 
+    if not 0.0 <= crowd_share <= 1.0:
+        raise ValueError(f"ds3d.htx.data.generate: crowd_share must be in [0, 1] (got {crowd_share})")
     if frames < 1 or frames_per_scene < 1 or shard_size < 1:
         raise ValueError("ds3d.htx.data.generate: frames, frames_per_scene and shard_size must be >= 1 "
                          f"(got {frames}, {frames_per_scene}, {shard_size})")
@@ -354,14 +362,19 @@ def generate(out_dir, split, frames, seed, frames_per_scene=8, shard_size=256, l
     info = {"split": split, "seed": seed, "preprocess": PREPROCESS, "max_points": MAX_POINTS,
             "camera": camera, "frame": "upright (docs/htx_training.md)", "format": 1,
             "room_range": [list(r) for r in ROOM_RANGE], "max_extra_furniture": MAX_EXTRA_FURNITURE}
+    if crowd_share > 0:  # files written without the crowd mix stay byte-identical
+        info["crowd_share"] = crowd_share
     pending, shard_no, done, skipped, scene_i = [], 0, 0, 0, 0
     stats = {"boxes": 0, "frames_with_people": 0, "up_source": [0, 0, 0]}
     seeds = iter(scene_seeds(split, 10**6, seed * 10_000_000))
     while done < frames:
         s = next(seeds)
         srng = np.random.default_rng(s)
-        scen = SCENARIOS[int(srng.choice(len(SCENARIOS), p=SCENARIO_WEIGHTS))]
-        humans = 0 if scen == "static_room" else int(srng.integers(1, 5))
+        if crowd_share > 0 and srng.random() < crowd_share:
+            scen, humans = CROWD_SCENARIOS[int(srng.integers(len(CROWD_SCENARIOS)))], -1
+        else:
+            scen = SCENARIOS[int(srng.choice(len(SCENARIOS), p=SCENARIO_WEIGHTS))]
+            humans = 0 if scen == "static_room" else int(srng.integers(1, 5))
         room = tuple(round(float(srng.uniform(lo, hi)), 3) for lo, hi in ROOM_RANGE)
         furniture = int(srng.integers(0, MAX_EXTRA_FURNITURE + 1))
         scene = ds3d.synth.Scene(scen, frames=2700, seed=s, humans=humans, room_size=room,
@@ -380,7 +393,7 @@ def generate(out_dir, split, frames, seed, frames_per_scene=8, shard_size=256, l
             if sample is None:
                 continue
             prev_up = sample["R_up_cam"].T.astype(np.float64) @ np.array([0, 0, 1.0])
-            sample["info"] = {"seed": s, "scenario": scen, "frame": int(fi), "humans": humans,
+            sample["info"] = {"seed": s, "scenario": scen, "frame": int(fi), "humans": humans if humans >= 0 else len(f["boxes"]),
                               "room": list(room), "furniture": furniture}
             pending.append(sample)
             done += 1

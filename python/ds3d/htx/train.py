@@ -43,6 +43,29 @@ def new_model(profile="fast", seed=0, dropout=0.0, head_dropout=0.1):
     return model
 
 
+def init_model(path, head_dropout=0.1):
+    """An HTx to fine-tune from an exported weights file (``--init``): the exported network,
+    whose BatchNorms were folded at export (identity statistics carrying the folded bias)."""
+    from .evaluate import _model_from_safetensors
+
+    model = _model_from_safetensors(path)
+    for name, m in model.named_modules():
+        if isinstance(m, torch.nn.Dropout) and name.startswith("mlp_heads"):
+            m.p = head_dropout
+    return model
+
+
+def fine_tune_mode(model):
+    """Training mode with every BatchNorm frozen: a model from ``init_model`` keeps its folded
+    statistics, so that the network trained is the network exported (batch statistics would
+    replace the identity normalisation the folded weights assume)."""
+    model.train()
+    for m in model.modules():
+        if isinstance(m, torch.nn.BatchNorm1d):
+            m.eval()
+    return model
+
+
 def train_mode(model):
     """Training mode with the BatchNorms of the five query heads frozen at their initial
     statistics (mean 0, variance 1, i.e. learned affine maps). In the heads, batch statistics
@@ -201,7 +224,11 @@ class Trainer:
         self.ds = dataset
         self.args = args
         self.ctx = ctx
-        self.model = train_mode(new_model(args.profile, args.seed, args.dropout, args.head_dropout))
+        if getattr(args, "init", None):
+            torch.manual_seed(args.seed)
+            self.model = fine_tune_mode(init_model(args.init, args.head_dropout))
+        else:
+            self.model = train_mode(new_model(args.profile, args.seed, args.dropout, args.head_dropout))
         self.opt = torch.optim.AdamW(self.model.parameters(), lr=args.lr, weight_decay=args.weight_decay)
         self.rng = np.random.default_rng(args.seed)
         self.step = 0
@@ -390,6 +417,9 @@ def parse_args(argv=None):
     p.add_argument("--reload-data", action="store_true",
                    help="at each epoch start, reload --data if shards were added (train while generating)")
     p.add_argument("--no-resume", action="store_true", help="ignore an existing checkpoint.pt")
+    p.add_argument("--init", default="",
+                   help="fine-tune: start from this exported weights file (.safetensors; its profile, "
+                        "every BatchNorm frozen) instead of a fresh model")
     a = p.parse_args(argv)
     for name in ("steps", "batch", "threads", "log_every"):
         if getattr(a, name) < 1:
