@@ -235,7 +235,7 @@ TEST(WeightsIo, ShippedModelCarriesItsChecksum) {
   const auto w = WeightsFile::read(path);
   EXPECT_TRUE(w.has_checksum());
   EXPECT_EQ(w.metadata(WeightsFile::kChecksumKey),
-            "2f7615e469341b5650e45fd6567491011913767313b8e680f056fca1e782af82");
+            "c1df65d46a5c63bd3301a1b0e3abd1c200dc8bf941838f5f1eddf2fe1e15bd2a");
 }
 
 }  // namespace
