@@ -393,7 +393,8 @@ def generate(out_dir, split, frames, seed, frames_per_scene=8, shard_size=256, l
             if sample is None:
                 continue
             prev_up = sample["R_up_cam"].T.astype(np.float64) @ np.array([0, 0, 1.0])
-            sample["info"] = {"seed": s, "scenario": scen, "frame": int(fi), "humans": humans if humans >= 0 else len(f["boxes"]),
+            sample["info"] = {"seed": s, "scenario": scen, "frame": int(fi),
+                              "humans": humans if humans >= 0 else len(f["boxes"]),  # crowd: own count
                               "room": list(room), "furniture": furniture}
             pending.append(sample)
             done += 1

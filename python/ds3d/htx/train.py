@@ -36,23 +36,24 @@ from .targets import box_targets
 def new_model(profile="fast", seed=0, dropout=0.0, head_dropout=0.1):
     """A freshly initialised HTx (PyTorch default init, BatchNorm at identity) for training."""
     torch.manual_seed(seed)
-    model = HTx(make_config(profile), dropout=dropout)
+    return set_head_dropout(HTx(make_config(profile), dropout=dropout), head_dropout)
+
+
+def set_head_dropout(model, p):
+    """Sets the dropout probability of the query heads (``mlp_heads``) to ``p``; returns model."""
     for name, m in model.named_modules():
         if isinstance(m, torch.nn.Dropout) and name.startswith("mlp_heads"):
-            m.p = head_dropout
+            m.p = p
     return model
 
 
-def init_model(path, head_dropout=0.1):
+def init_model(path, seed=0, head_dropout=0.1):
     """An HTx to fine-tune from an exported weights file (``--init``): the exported network,
     whose BatchNorms were folded at export (identity statistics carrying the folded bias)."""
     from .evaluate import _model_from_safetensors
 
-    model = _model_from_safetensors(path)
-    for name, m in model.named_modules():
-        if isinstance(m, torch.nn.Dropout) and name.startswith("mlp_heads"):
-            m.p = head_dropout
-    return model
+    torch.manual_seed(seed)
+    return set_head_dropout(_model_from_safetensors(path), head_dropout)
 
 
 def fine_tune_mode(model):
@@ -225,8 +226,7 @@ class Trainer:
         self.args = args
         self.ctx = ctx
         if getattr(args, "init", None):
-            torch.manual_seed(args.seed)
-            self.model = fine_tune_mode(init_model(args.init, args.head_dropout))
+            self.model = fine_tune_mode(init_model(args.init, args.seed, args.head_dropout))
         else:
             self.model = train_mode(new_model(args.profile, args.seed, args.dropout, args.head_dropout))
         self.opt = torch.optim.AdamW(self.model.parameters(), lr=args.lr, weight_decay=args.weight_decay)
