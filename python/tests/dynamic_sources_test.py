@@ -38,6 +38,7 @@ def test_file_source_round_trip(detections):
     assert src.detect(rgb, None, CAM, 1.5).empty  # no line within max_dt = 0.02 s
     assert src.detect(rgb, None, CAM, 2.0).empty  # a line with no boxes
     assert (src.num_matched, src.num_unmatched) == (2, 1)
+    assert src.num_carried == 0  # no depth image: nothing to follow a box by
     p = ds3d.FileSourceParams()
     p.classes = ["person"]
     only = ds3d.FileSource(str(detections), p).detect(rgb, None, CAM, 1.0)
@@ -163,6 +164,12 @@ def test_bad_input_errors(detections, tmp_path):
         p.validate()
     with pytest.raises(ValueError, match="min_score"):
         ds3d.FileSource(detections, p)
+    p = ds3d.FileSourceParams()
+    assert (p.hold_frames, p.hold_min_points, p.hold_seconds) == (10, 5, 0.5)
+    assert p.hold_margin == pytest.approx(0.15)
+    p.hold_frames = -1
+    with pytest.raises(ValueError, match="hold_frames"):
+        p.validate()
     broken = tmp_path / "broken.jsonl"
     broken.write_text('{"timestamp": 1.0, "boxes": [{"bbox": [1, 2, 3]}]}\n')
     with pytest.raises(RuntimeError, match="broken.jsonl"):

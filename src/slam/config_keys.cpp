@@ -426,6 +426,18 @@ std::vector<ConfigKey> filter_keys() {
           "file.report_floor", [](auto& c) -> auto& { return c.file.report_floor; },
           "keypoints on the frame's floor (RANSAC on its depth) stay static in every box"),
       key(
+          "file.hold_frames", [](auto& c) -> auto& { return c.file.hold_frames; },
+          "frames a 3-D box is carried after the file last reported it (0 = off), >= 0"),
+      key(
+          "file.hold_min_points", [](auto& c) -> auto& { return c.file.hold_min_points; },
+          "depth points that keep a carried box, >= 1"),
+      key(
+          "file.hold_margin", [](auto& c) -> auto& { return c.file.hold_margin; },
+          "[m] a carried box grows by this per side when its points are gathered, >= 0"),
+      key(
+          "file.hold_seconds", [](auto& c) -> auto& { return c.file.hold_seconds; },
+          "[s] longest time a box is carried after the file reported it, >= 0"),
+      key(
           "pipeline.threaded", [](auto& c) -> auto& { return c.pipeline.threaded; },
           "stages in their own threads (false: all on the caller's)"),
       key(

@@ -103,6 +103,14 @@ TEST(FileSource, FiltersByClassScoreAndTime) {
   EXPECT_EQ(src.num_matched(), 2U);
   EXPECT_EQ(src.num_unmatched(), 1U);
   EXPECT_THROW(ds3d::slam::FileSource(DetectionsFile{}, {.max_dt = -1.0}), ds3d::InvalidArgument);
+  EXPECT_THROW(ds3d::slam::FileSource(DetectionsFile{}, {.hold_frames = -1}),
+               ds3d::InvalidArgument);
+  EXPECT_THROW(ds3d::slam::FileSource(DetectionsFile{}, {.hold_min_points = 0}),
+               ds3d::InvalidArgument);
+  EXPECT_THROW(ds3d::slam::FileSource(DetectionsFile{}, {.hold_margin = std::numeric_limits<float>::quiet_NaN()}),
+               ds3d::InvalidArgument);
+  EXPECT_THROW(ds3d::slam::FileSource(DetectionsFile{}, {.hold_seconds = -1.0}),
+               ds3d::InvalidArgument);
 }
 
 TEST(DynamicSources, MakeFromSpec) {
@@ -202,29 +210,34 @@ std::pair<int, int> count_on(const std::vector<std::uint8_t>& m, std::size_t gri
   return {on, n};
 }
 
-// A person (slab at 2.5 m, feet on the floor) seen from 1 m above the floor, a wall at 4 m: the
-// depth image, and the detections file boxing the person at frame time 1.0.
+// A person (slab at 2.5 m, feet on the floor; image columns u0 to u0 + 100, none when u0 < 0)
+// seen from 1 m above the floor, a wall at 4 m: the depth image, and the detections file boxing
+// the person (columns 270-370) at frame time 1.0.
 struct PersonOnAFloor {
   ds3d::PinholeCamera cam;
   cv::Mat depth{480, 640, CV_16UC1, cv::Scalar(0)};
   std::string detections;
-  PersonOnAFloor() {
+  explicit PersonOnAFloor(int u0 = 270) {
     const double h = 1.0;  // camera height [m]
     for (int v = 0; v < depth.rows; ++v) {
       for (int u = 0; u < depth.cols; ++u) {
         double z = 4.0;  // wall
         if (v > cam.cy) z = std::min(z, h * cam.fy / (v - cam.cy));
         const double y = (v - cam.cy) * 2.5 / cam.fy;
-        if (u >= 270 && u <= 370 && y >= -0.8 && y <= h) z = 2.5;
+        if (u0 >= 0 && u >= u0 && u <= u0 + 100 && y >= -0.8 && y <= h) z = 2.5;
         depth.at<std::uint16_t>(v, u) = static_cast<std::uint16_t>(std::lround(z * 5000.0));
       }
     }
-    detections = "{\"timestamp\": 1.0, \"boxes\": [{\"corners\": [";
+    detections = "{\"timestamp\": 1.0, \"boxes\": [" + person_box() + "]}\n";
+  }
+  // The person's 3-D box at columns 270-370, as a detections-file box.
+  static std::string person_box() {
+    std::string b = "{\"corners\": [";
     for (int i = 0; i < 8; ++i) {
-      detections += std::string(i > 0 ? "," : "") + "[" + ((i & 1) ? "0.3" : "-0.3") + "," +
-                    ((i & 2) ? "1.0" : "-0.85") + "," + ((i & 4) ? "2.7" : "2.3") + "]";
+      b += std::string(i > 0 ? "," : "") + "[" + ((i & 1) ? "0.3" : "-0.3") + "," +
+           ((i & 2) ? "1.0" : "-0.85") + "," + ((i & 4) ? "2.7" : "2.3") + "]";
     }
-    detections += "], \"class\": \"person\"}]}\n";
+    return b + "], \"class\": \"person\"}";
   }
 };
 
@@ -268,6 +281,52 @@ TEST(FileSource, ReportsTheFloorSoThatKeypointsAtThePersonsFeetStayStatic) {
   EXPECT_EQ(floor_on, 0) << "floor keypoints at the feet stay static with the floor";
   EXPECT_GT(count_on(m_off, feats.size(), floor_at_feet).first, 5)
       << "without the floor the box takes them with the legs";
+}
+
+// A detector misses people in runs of frames: the file source carries a 3-D box it reported
+// (hold_frames) while depth points remain in it, and moves it with them. The person walks 10
+// columns (about 5 cm at 2.5 m) per frame while the file reports nothing.
+TEST(FileSource, HoldsABoxThroughMissedFramesAndMovesItWithThePerson) {
+  const PersonOnAFloor first;
+  const std::string file = first.detections + "{\"timestamp\": 1.1, \"boxes\": []}\n" +
+                           "{\"timestamp\": 1.2, \"boxes\": []}\n" +
+                           "{\"timestamp\": 1.3, \"boxes\": [" +
+                           PersonOnAFloor::person_box() + "]}\n{\"timestamp\": 2.0, \"boxes\": []}\n";
+  const auto frame = [](double t, const PersonOnAFloor& s) {
+    FrameInput f;
+    f.timestamp = t;
+    f.depth = s.depth;
+    return f;
+  };
+  const auto centre_x = [](const DynamicObjects& o) { return o.boxes_3d.at(0).col(0).mean(); };
+  ds3d::slam::FileSource src(DetectionsFile::parse(file));
+  ASSERT_EQ(src.detect(frame(1.0, first), first.cam).boxes_3d.size(), 1U);
+  const DynamicObjects missed = src.detect(frame(1.1, PersonOnAFloor(280)), first.cam);
+  ASSERT_EQ(missed.boxes_3d.size(), 1U) << "carried through the miss";
+  const double step = 10 * 2.5 / first.cam.fx;  // [m]
+  EXPECT_NEAR(centre_x(missed), step, 0.02) << "moved with the person's points";
+  EXPECT_TRUE(missed.support_plane.has_value()) << "a frame with a carried box has its floor";
+  const DynamicObjects again = src.detect(frame(1.2, PersonOnAFloor(290)), first.cam);
+  ASSERT_EQ(again.boxes_3d.size(), 1U);
+  EXPECT_NEAR(centre_x(again), 2 * step, 0.03);
+  EXPECT_EQ(src.num_carried(), 2U);
+  // Reported again: the file's box continues the held one, which is not reported twice.
+  EXPECT_EQ(src.detect(frame(1.3, first), first.cam).boxes_3d.size(), 1U);
+  EXPECT_EQ(src.num_carried(), 2U);
+  // Too long after the last report (hold_seconds): not carried.
+  EXPECT_TRUE(src.detect(frame(2.0, first), first.cam).boxes_3d.empty());
+
+  // Off, or the person gone (no points left in the box), or past hold_frames: nothing carried.
+  ds3d::slam::FileSource off(DetectionsFile::parse(file), {.hold_frames = 0});
+  off.detect(frame(1.0, first), first.cam);
+  EXPECT_TRUE(off.detect(frame(1.1, PersonOnAFloor(280)), first.cam).boxes_3d.empty());
+  ds3d::slam::FileSource gone(DetectionsFile::parse(file));
+  gone.detect(frame(1.0, first), first.cam);
+  EXPECT_TRUE(gone.detect(frame(1.1, PersonOnAFloor(-1)), first.cam).boxes_3d.empty());
+  ds3d::slam::FileSource one(DetectionsFile::parse(file), {.hold_frames = 1});
+  one.detect(frame(1.0, first), first.cam);
+  EXPECT_EQ(one.detect(frame(1.1, PersonOnAFloor(280)), first.cam).boxes_3d.size(), 1U);
+  EXPECT_TRUE(one.detect(frame(1.2, PersonOnAFloor(290)), first.cam).boxes_3d.empty());
 }
 
 // A person (slab at 1.5 m, u 250-310) with a chair at the same depth right beside it (u 311-420)

@@ -363,6 +363,18 @@ void bind_dynamic_sources(py::module_& m) {
       .def_readwrite("report_floor", &FileSourceParams::report_floor,
                      "report the frame's floor (RANSAC on its depth) as the support plane in "
                      "frames with boxes, so keypoints on it stay static (default True)")
+      .def_readwrite("hold_frames", &FileSourceParams::hold_frames,
+                     "frames a 3-D box is carried after the file last reported it, >= 0 (0 = off; "
+                     "default 10): reported again, moved with the depth points in it, unless a "
+                     "box of the frame continues it or fewer than hold_min_points remain")
+      .def_readwrite("hold_min_points", &FileSourceParams::hold_min_points,
+                     "depth points that keep a carried box, >= 1 (default 5)")
+      .def_readwrite("hold_margin", &FileSourceParams::hold_margin,
+                     "growth per side [m] of a carried box when its points are gathered, >= 0 "
+                     "(default 0.15)")
+      .def_readwrite("hold_seconds", &FileSourceParams::hold_seconds,
+                     "longest time [s] a box is carried after the file reported it, >= 0 "
+                     "(default 0.5)")
       .def("validate", &FileSourceParams::validate, "Raises ValueError naming the bad field.");
 
   py::class_<FileSource, DynamicObjectSource, std::shared_ptr<FileSource>>(
@@ -387,7 +399,9 @@ void bind_dynamic_sources(py::module_& m) {
       .def_property_readonly("num_matched", &FileSource::num_matched,
                              "frames so far whose timestamp matched a detections line")
       .def_property_readonly("num_unmatched", &FileSource::num_unmatched,
-                             "frames so far with no detections line within max_dt");
+                             "frames so far with no detections line within max_dt")
+      .def_property_readonly("num_carried", &FileSource::num_carried,
+                             "held 3-D boxes reported so far, over all frames (hold_frames)");
 
   py::class_<HdbscanMasker, std::shared_ptr<HdbscanMasker>>(
       m, "HdbscanMasker",
