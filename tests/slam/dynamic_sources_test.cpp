@@ -107,7 +107,8 @@ TEST(FileSource, FiltersByClassScoreAndTime) {
                ds3d::InvalidArgument);
   EXPECT_THROW(ds3d::slam::FileSource(DetectionsFile{}, {.hold_min_points = 0}),
                ds3d::InvalidArgument);
-  EXPECT_THROW(ds3d::slam::FileSource(DetectionsFile{}, {.hold_margin = std::numeric_limits<float>::quiet_NaN()}),
+  EXPECT_THROW(ds3d::slam::FileSource(DetectionsFile{},
+                                      {.hold_margin = std::numeric_limits<float>::quiet_NaN()}),
                ds3d::InvalidArgument);
   EXPECT_THROW(ds3d::slam::FileSource(DetectionsFile{}, {.hold_seconds = -1.0}),
                ds3d::InvalidArgument);
@@ -290,8 +291,8 @@ TEST(FileSource, HoldsABoxThroughMissedFramesAndMovesItWithThePerson) {
   const PersonOnAFloor first;
   const std::string file = first.detections + "{\"timestamp\": 1.1, \"boxes\": []}\n" +
                            "{\"timestamp\": 1.2, \"boxes\": []}\n" +
-                           "{\"timestamp\": 1.3, \"boxes\": [" +
-                           PersonOnAFloor::person_box() + "]}\n{\"timestamp\": 2.0, \"boxes\": []}\n";
+                           "{\"timestamp\": 1.3, \"boxes\": [" + PersonOnAFloor::person_box() +
+                           "]}\n{\"timestamp\": 2.0, \"boxes\": []}\n";
   const auto frame = [](double t, const PersonOnAFloor& s) {
     FrameInput f;
     f.timestamp = t;

@@ -6,8 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
-#include <vector>
 #include <utility>
+#include <vector>
 
 #include "ds3d/errors.hpp"
 #include "dynamic_impl.hpp"
@@ -25,8 +25,8 @@ void FileSourceParams::validate() const {
              "ds3d::slam::FileSourceParams: hold_min_points must be >= 1 (got ", hold_min_points,
              ")");
   DS3D_CHECK(std::isfinite(hold_margin) && hold_margin >= 0.0F,
-             "ds3d::slam::FileSourceParams: hold_margin must be finite and >= 0 (got ",
-             hold_margin, ")");
+             "ds3d::slam::FileSourceParams: hold_margin must be finite and >= 0 (got ", hold_margin,
+             ")");
   DS3D_CHECK(std::isfinite(hold_seconds) && hold_seconds >= 0.0,
              "ds3d::slam::FileSourceParams: hold_seconds must be finite and >= 0 (got ",
              hold_seconds, ")");
