@@ -351,6 +351,11 @@ std::vector<ConfigKey> geometric_keys() {
           "geometric.hold_frames", [](auto& c) -> auto& { return c.geometric.hold_frames; },
           "frames an object is kept after its last motion, >= 0"),
       key(
+          "geometric.trust_first_candidates",
+          [](auto& c) -> auto& { return c.geometric.trust_first_candidates; },
+          "candidates of the first frame tested with a trusted pose become objects without a "
+          "repeat"),
+      key(
           "geometric.segment_objects", [](auto& c) -> auto& { return c.geometric.segment_objects; },
           "grow each object over the depth-continuous surface around its evidence (pixel mask)"),
   };

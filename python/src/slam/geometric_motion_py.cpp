@@ -61,6 +61,9 @@ using ds3d::slam::GeometricMotionStats;
   X(max_object_width, "widest object segment along the floor [m], > 0")                           \
   X(box_margin, "object boxes grow by this in x, y and z [m], >= 0")                              \
   X(hold_frames, "frames an object is kept after its last motion evidence, >= 0")                 \
+  X(trust_first_candidates,                                                                       \
+    "candidates of the first frame tested with a trusted pose become objects without a repeat "   \
+    "(default True)")                                                                             \
   X(segment_objects,                                                                              \
     "grow each object over the depth-continuous surface around its evidence and report it as "    \
     "DynamicObjects.pixel_mask (False: boxes only)")

@@ -700,6 +700,9 @@ void GeometricMotionSource::confirm_objects(std::size_t now, Work& work) {
     return w;
   };
   std::vector<Held> candidates_now;
+  // GeometricMotionParams::trust_first_candidates: nothing before this frame could confirm.
+  const bool first = params_.trust_first_candidates && stats_.pose_ok && !trusted_test_done_;
+  if (stats_.pose_ok) trusted_test_done_ = true;
   for (const Candidate& cand : found) {
     Held obj;
     const Box3 ev = world_box(cand.box, &obj.corners_world);
@@ -713,7 +716,7 @@ void GeometricMotionSource::confirm_objects(std::size_t now, Work& work) {
       return ev.overlaps(xe, 0.0);
     };
     candidates_now.push_back(obj);
-    if (std::none_of(candidates_.begin(), candidates_.end(), confirms) &&
+    if (!first && std::none_of(candidates_.begin(), candidates_.end(), confirms) &&
         std::none_of(held_.begin(), held_.end(), confirms)) {
       continue;
     }

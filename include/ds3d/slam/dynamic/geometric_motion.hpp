@@ -43,7 +43,8 @@
 ///     `min_warp_area` square metres that pass the support test become candidates too, and
 ///     overlapping keypoint and warp candidates are merged;
 ///  6. a candidate becomes an object only when it repeats at the same world place (overlapping
-///     world boxes) in consecutive frames, or confirms a held object;
+///     world boxes) in consecutive frames, or confirms a held object; in the first frame tested
+///     with a trusted pose, which no earlier frame can confirm, at once (trust_first_candidates);
 ///  7. an object is reported for `hold_frames` frames after its last motion evidence, so that a
 ///     person who stops for a while after moving is still removed;
 ///  8. object segments (`segment_objects`): the evidence of an object covers only what moved
@@ -153,6 +154,12 @@ struct GeometricMotionParams {
   double max_object_width = 1.2;
   float box_margin = 0.15F;  ///< object boxes grow by this in x, y and z [m], >= 0
   int hold_frames = 90;      ///< frames an object is kept after its last motion, >= 0
+  /// Candidates of the first frame tested with a trusted pose (usually frame 1, against frame
+  /// 0) become objects without the repeat of step 6 (key `geometric.trust_first_candidates`):
+  /// no earlier frame can confirm them, and a front-end tracks that frame against a first map
+  /// built from every keypoint of frame 0, people included. Off: the first objects come a frame
+  /// later.
+  bool trust_first_candidates = true;
   /// Grow each object over the depth-continuous surface around its evidence (step 6 of the file
   /// comment) and report it as DynamicObjects::pixel_mask. Off: boxes of the evidence only.
   bool segment_objects = true;
@@ -278,6 +285,7 @@ class GeometricMotionSource final : public DynamicObjectSource {
   std::deque<Past> history_;
   std::vector<Held> held_;
   std::vector<Held> candidates_;  // candidates of the previous frame, awaiting confirmation
+  bool trusted_test_done_ = false;  // a frame was tested with a trusted pose (trust_first_...)
   std::vector<Eigen::Vector2d> grid_rays_;  // undistorted normalised ray of each warp grid pixel
   PinholeCamera grid_camera_{};             // camera grid_rays_ was computed for
   int grid_stride_ = 0;                     // stride grid_rays_ was computed for
