@@ -117,11 +117,11 @@ DynamicObjects FileSource::detect(const FrameInput& frame, const PinholeCamera& 
 // enough points remain in them, then holds this frame's 3-D boxes. Without a cloud nothing is
 // carried and nothing held.
 void FileSource::hold(const FrameInput& frame, const Points3f* points, DynamicObjects& out) {
-  std::vector<HeldBox> next;
   if (points == nullptr) {
     held_.clear();
     return;
   }
+  std::vector<HeldBox> next;
   std::vector<SolidBox> solids;
   for (const auto& c : out.boxes_3d) {
     std::optional<SolidBox> s = solid_from_corners(c, params_.hold_margin);
