@@ -123,6 +123,24 @@ TEST(DynamicSources, MakeFromSpec) {
     out << kGood;
   }
   EXPECT_EQ(ds3d::slam::make_dynamic_source("file:" + path.string())->name(), "file");
+  // A path ends at a '+' that a source name follows, on either side of the '+'.
+  EXPECT_EQ(ds3d::slam::make_dynamic_source("file:" + path.string() + "+geometric")->name(),
+            "file+geometric");
+  EXPECT_EQ(ds3d::slam::make_dynamic_source("geometric+file:" + path.string())->name(),
+            "geometric+file");
+  EXPECT_EQ(
+      ds3d::slam::make_dynamic_source("file:" + path.string() + "+file:" + path.string())->name(),
+      "file+file");
+  // A file whose name holds '+' and a source name after it is still one file.
+  const auto plus_path = std::filesystem::temp_directory_path() / "ds3d_dyn+geometric";
+  std::filesystem::copy_file(path, plus_path, std::filesystem::copy_options::overwrite_existing);
+  EXPECT_EQ(ds3d::slam::make_dynamic_source("file:" + plus_path.string())->name(), "file");
+  std::filesystem::remove(plus_path);
+  // Only a source name after the '+' splits: the rest stays the path (and is not found).
+  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("file:" + path.string() + "+none"),
+               ds3d::IoError);
+  EXPECT_THROW((void)ds3d::slam::make_dynamic_source("file:" + path.string() + "+geometricx"),
+               ds3d::IoError);
   std::filesystem::remove(path);
   EXPECT_THROW((void)ds3d::slam::make_dynamic_source("yolo"), ds3d::InvalidArgument);
   EXPECT_THROW((void)ds3d::slam::make_dynamic_source("file:"), ds3d::InvalidArgument);

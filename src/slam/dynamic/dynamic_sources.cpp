@@ -41,6 +41,31 @@ std::filesystem::path find_default_weights() {
                      tried.str(), "); pass one with --weights PATH"));
 }
 
+namespace {
+
+// In "file:PATH+B" or "mask:DIR+B" the path ends at the first '+' that B follows as a source name
+// (geometric, htx, file:, mask:), unless the whole rest of the string names an existing file or
+// folder (a path with '+' in it). Returns the position of that '+', or npos: one source.
+std::size_t path_source_end(const std::string& spec) {
+  if (spec.rfind("file:", 0) != 0 && spec.rfind("mask:", 0) != 0) return std::string::npos;
+  std::error_code ec;
+  if (std::filesystem::exists(spec.substr(5), ec)) return std::string::npos;
+  for (std::size_t plus = spec.find('+', 5); plus != std::string::npos;
+       plus = spec.find('+', plus + 1)) {
+    const std::string rest = spec.substr(plus + 1);
+    for (const char* head : {"geometric", "htx", "file:", "mask:"}) {
+      const std::string h(head);
+      const bool name = h.back() != ':';
+      if (rest.rfind(h, 0) == 0 && (!name || rest.size() == h.size() || rest[h.size()] == '+')) {
+        return plus;
+      }
+    }
+  }
+  return std::string::npos;
+}
+
+}  // namespace
+
 std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec,
                                                          const DynamicSourceOptions& options) {
   constexpr const char* kKnown =
@@ -48,6 +73,10 @@ std::shared_ptr<DynamicObjectSource> make_dynamic_source(const std::string& spec
       "setting (SlamConfig::gate, --gate motion|evidence)";
   if (spec == "none") return std::make_shared<NoDynamicObjects>();
   if (spec == "geometric") return std::make_shared<GeometricMotionSource>(options.geometric);
+  if (const std::size_t plus = path_source_end(spec); plus != std::string::npos) {
+    return std::make_shared<CompositeSource>(make_dynamic_source(spec.substr(0, plus), options),
+                                             make_dynamic_source(spec.substr(plus + 1), options));
+  }
   if (spec.rfind("file:", 0) == 0) {
     const std::string path = spec.substr(5);
     DS3D_CHECK(!path.empty(), "ds3d::slam::make_dynamic_source: 'file:' needs a path (got '", spec,

@@ -49,7 +49,9 @@ struct DynamicSourceOptions {
 /// options.file.max_dt: per-frame mask images), "geometric" (GeometricMotionSource with
 /// options.geometric), "htx" (HtxSource, weights and parameters from `options`), or "A+B" with A
 /// and B any of these but none (CompositeSource: A, then B, each on the whole frame), e.g.
-/// "htx+geometric". Gating by the geometric source (MotionGatedSource) is a separate setting:
+/// "htx+geometric" or "file:dets.jsonl+geometric": a path ends at the first '+' followed by a
+/// source name (geometric, htx, file:, mask:) unless the whole rest names an existing file or
+/// folder. Gating by the geometric source (MotionGatedSource) is a separate setting:
 /// make_dynamic_source(const SlamConfig&) in config.hpp, `ds3d-slam --gate motion|evidence`.
 /// @throws ds3d::InvalidArgument for an unknown name or bad options; ds3d::IoError for an
 ///   unreadable file or weights file (naming the path).
