@@ -138,7 +138,7 @@ list="$out/runs/list.txt"
 for sc in $scenarios; do
   for seed in $seeds; do
     d="$out/seq/${sc}_$seed"
-    for m in "${modes_real[@]}" "file:detections_noisy.jsonl"; do
+    for m in "${modes_real[@]}" "file:detections_noisy.jsonl" "file:detections_noisy.jsonl+geometric"; do
       printf '%s\t%s\t%s\t%s\t%s\n' "$sc" "$seed" "$m" "$d" "$d/groundtruth.txt" >>"$list"
     done
   done

@@ -4,7 +4,8 @@
 # The HTx-lite training recipe of docs/htx_training.md, end to end, on CPU:
 #   data (synthetic humanoids) -> training (resumable) -> threshold on val -> export -> part-head
 #   fine-tune on per-pixel labels -> crowd fine-tune (half the scenes from the crowd_* stress
-#   scenarios) -> threshold, export, part-head re-fit -> evaluation.
+#   scenarios) -> threshold, export, part-head re-fit, then again with more crowd frames ->
+#   evaluation.
 # Usage: scripts/train_htx.sh [WORK_DIR]   (default /work/htx_data; keep it outside git)
 # Environment: BUILD (default build), THREADS (torch threads per run, default 1), NICE (default 10),
 #   TRAIN_FRAMES per seed (default 1500, two seeds), STEPS (default 2500), BATCH (default 4),
@@ -14,6 +15,8 @@
 #   ABLATION_STEP and compared with the main run's snapshot at that step.
 #   CROWD_FRAMES (default 1600), CROWD_SHARE (default 0.5), CROWD_STEPS (default 1200; 0 = no
 #   crowd fine-tune): the fine-tune's training frames, their share of crowd scenes, its steps.
+#   CROWD_PART_FRAMES (default 1600; 0 = none): crowd-only frames added for the last part-head
+#   re-fit (stage 3e).
 set -euo pipefail
 WORK=${1:-/work/htx_data}
 BUILD=${BUILD:-build}
@@ -27,6 +30,7 @@ ABLATION_STEP=${ABLATION_STEP:-$((STEPS / 2))}
 CROWD_FRAMES=${CROWD_FRAMES:-1600}
 CROWD_SHARE=${CROWD_SHARE:-0.5}
 CROWD_STEPS=${CROWD_STEPS:-1200}
+CROWD_PART_FRAMES=${CROWD_PART_FRAMES:-1600}
 PY="nice -n ${NICE} /usr/bin/python3"
 export PYTHONPATH="${BUILD}/python${PYTHONPATH:+:${PYTHONPATH}}"
 mkdir -p "${WORK}"
@@ -87,6 +91,17 @@ if [ "${CROWD_STEPS}" -gt 0 ]; then
     --out models/htx_lite_fast.safetensors --threads "${THREADS}"
   ${PY} -m ds3d.htx.finetune_part --model models/htx_lite_fast.safetensors --data "${WORK}/part_data" \
     --out models/htx_lite_fast.safetensors --threads "${THREADS}" --epochs 8
+  # 3e. the part head on CROWD_PART_FRAMES more crowd frames (seed 4, crowd scenes only), 8 + 8
+  #     epochs: after 3d it still split carried boxes into interleaved foreground and background
+  if [ "${CROWD_PART_FRAMES}" -gt 0 ]; then
+    ${PY} -m ds3d.htx.make_dataset --out "${WORK}/crowd_part" --split train \
+      --frames "${CROWD_PART_FRAMES}" --seed 4 --crowd-share 1
+    ln -sf "${WORK}"/crowd_part/*.npz "${WORK}/part_data/"
+    for _ in 1 2; do
+      ${PY} -m ds3d.htx.finetune_part --model models/htx_lite_fast.safetensors --data "${WORK}/part_data" \
+        --out models/htx_lite_fast.safetensors --threads "${THREADS}" --epochs 8
+    done
+  fi
   ${PY} -m ds3d.htx.evaluate synthetic --model models/htx_lite_fast.safetensors --data "${WORK}/crowd_test" \
     --json "${WORK}/eval_crowd.json"
 fi

@@ -163,3 +163,19 @@ def test_version(capsys):
         cli.parse_args(["--version"])
     assert e.value.code == 0
     assert capsys.readouterr().out.strip() == f"ds3d-bench {ds3d.__version__}"
+
+
+@pytest.mark.parametrize("name, synthetic_cells", [("stress", 64), ("stress_heldout", 256)])
+def test_shipped_stress_suites_plan_every_mode(name, synthetic_cells, tmp_path):
+    # The shipped suites load and plan as documented; a file: detector joined with another source
+    # takes the sequence's own detections.
+    pytest.importorskip("yaml")
+    s = load_suite(ROOT / "bench" / "suites" / f"{name}.yaml")
+    _, cells = cli.plan(s, str(tmp_path / "out"), cli.find_tools(str(BIN)))
+    synth = [c for c in cells if not c["sequence"].startswith("bonn")]
+    assert len(synth) == synthetic_cells
+    joined = [c for c in synth if c["config"] == "file:detections_noisy.jsonl+geometric"]
+    assert len(joined) == synthetic_cells // 8
+    spec = joined[0]["slam_args"][joined[0]["slam_args"].index("--dynamic") + 1]
+    assert spec.startswith("file:" + str(tmp_path / "out"))
+    assert spec.endswith("/detections_noisy.jsonl+geometric")

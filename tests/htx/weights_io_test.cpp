@@ -235,7 +235,7 @@ TEST(WeightsIo, ShippedModelCarriesItsChecksum) {
   const auto w = WeightsFile::read(path);
   EXPECT_TRUE(w.has_checksum());
   EXPECT_EQ(w.metadata(WeightsFile::kChecksumKey),
-            "c1df65d46a5c63bd3301a1b0e3abd1c200dc8bf941838f5f1eddf2fe1e15bd2a");
+            "94dc8d38137665f63eb794e19b5b597e33889c809703489dbc2700201ac64ae4");
 }
 
 }  // namespace
