@@ -790,7 +790,25 @@ TEST(DynamicSources, MakeHtxAndCompositeFromSpec) {
   const auto* ov_htx = dynamic_cast<const HtxSource*>(
       dynamic_cast<ds3d::slam::MotionGatedSource*>(ov.get())->semantic().get());
   ASSERT_NE(ov_htx, nullptr);
-  EXPECT_EQ(ov_htx->params().hold_frames, HtxSourceParams{}.hold_frames);
+  // The motion gate caps the hold; a lower hold is kept.
+  EXPECT_EQ(ov_htx->params().hold_frames, ds3d::slam::kMotionGateHoldFrames);
+  EXPECT_EQ(ov_htx->params().hold_seconds, ds3d::slam::kMotionGateHoldSeconds);
+  EXPECT_GT(HtxSourceParams{}.hold_frames, ds3d::slam::kMotionGateHoldFrames);
+  cfg.gate = ds3d::slam::Gate::kMotion;
+  cfg.htx.hold_frames = 3;
+  cfg.htx.hold_seconds = 0.2;
+  const auto ov3 = ds3d::slam::make_dynamic_source(cfg);
+  const auto* ov3_htx = dynamic_cast<const HtxSource*>(
+      dynamic_cast<ds3d::slam::MotionGatedSource*>(ov3.get())->semantic().get());
+  ASSERT_NE(ov3_htx, nullptr);
+  EXPECT_EQ(ov3_htx->params().hold_frames, 3);
+  EXPECT_EQ(ov3_htx->params().hold_seconds, 0.2);
+  // Without a gate the hold is the configured one.
+  cfg.gate = ds3d::slam::Gate::kNone;
+  cfg.htx.hold_frames = 60;
+  const auto plain60 = ds3d::slam::make_dynamic_source(cfg);
+  ASSERT_NE(dynamic_cast<const HtxSource*>(plain60.get()), nullptr);
+  EXPECT_EQ(dynamic_cast<const HtxSource*>(plain60.get())->params().hold_frames, 60);
   EXPECT_FALSE(dynamic_cast<ds3d::slam::MotionGatedSource*>(ov.get())->params().evidence);
   // The old '&' grammar is gone (unquoted, the shell ran `htx` in the background).
   EXPECT_THROW((void)ds3d::slam::make_dynamic_source("htx&geometric", opt), ds3d::InvalidArgument);
@@ -973,7 +991,7 @@ TEST(HtxSource, HoldCarriesMissedBoxesOnPeople) {
   HtxSource plain(det, {.report_floor = true, .hold_frames = 0});
   HtxSource held(det, {.report_floor = true, .hold_frames = 10});
   HtxSource once(det, {.report_floor = true, .hold_frames = 1});
-  HtxSource sparse(det, {.report_floor = true, .hold_frames = 10});  // frames 1 s apart
+  HtxSource sparse(det, {.report_floor = true, .hold_frames = 10});  // frames 2 s apart
   std::size_t carried = 0;
   std::size_t carried_on_person = 0;
   std::int64_t covered_plain = 0;
@@ -999,7 +1017,7 @@ TEST(HtxSource, HoldCarriesMissedBoxesOnPeople) {
     const DynamicObjects b = held.detect(in, cam);
     (void)once.detect(in, cam);
     FrameInput late = in;
-    late.timestamp = static_cast<double>(i);
+    late.timestamp = 2.0 * static_cast<double>(i);  // > hold_seconds apart
     (void)sparse.detect(late, cam);
     EXPECT_EQ(sparse.last_stats().num_carried, 0U) << i;
     const std::size_t n_plain = a.boxes_3d.size();

@@ -101,10 +101,18 @@ void apply_config_file(SlamConfig& config, const std::filesystem::path& file);
 /// The options make_dynamic_source(spec, options) takes, from `config`.
 [[nodiscard]] DynamicSourceOptions source_options(const SlamConfig& config);
 
+/// Under the motion gate (`--gate motion`) the htx source carries a missed box at most this many
+/// frames and seconds (htx.hold_frames and htx.hold_seconds, when larger, are lowered to these):
+/// the geometric source already reports a person for 90 frames after his last motion, and a
+/// longer hold only removes people who stopped (docs/dynamic.md).
+inline constexpr int kMotionGateHoldFrames = 10;
+inline constexpr double kMotionGateHoldSeconds = 0.5;  ///< see kMotionGateHoldFrames
+
 /// The source `config` names: make_dynamic_source(config.dynamic, source_options(config)), then,
 /// with a gate, MotionGatedSource over it and a GeometricMotionSource(config.geometric); under
 /// the evidence gate the htx source carries no boxes itself (htx.hold_frames 0: the gate's tracks
-/// hold them).
+/// hold them), under the motion gate at most kMotionGateHoldFrames frames and
+/// kMotionGateHoldSeconds.
 /// @throws ds3d::InvalidArgument for a bad spec, a gate on "none", or bad parameters;
 ///   ds3d::IoError for unreadable detections or weights files.
 [[nodiscard]] std::shared_ptr<DynamicObjectSource> make_dynamic_source(const SlamConfig& config);

@@ -77,16 +77,18 @@ struct HtxSourceParams {
   /// and the nearest foreground centroid may be the next voxel's.
   float foreground_radius = 0.2F;
   /// Frames a box is carried after the detector reported it, >= 0 (0 = off; counted in detector
-  /// runs with detect_every k > 1), default 10; needs segment. A held box is reported again
+  /// runs with detect_every k > 1), default 30; needs segment. A held box is reported again
   /// unless a detected box continues it or fewer than hold_min_points foreground points of the
   /// frame lie in it (grown by box_uncertainty); it moves with their centroid. Covers detection
-  /// misses of people the part head still sees (docs/dynamic.md). make_dynamic_source sets 0
-  /// under the evidence gate (`--gate evidence`).
-  int hold_frames = 10;
+  /// misses of people the part head still sees, such as a person who stands close to the camera,
+  /// cut by the image edges, for a second or more (docs/dynamic.md). make_dynamic_source sets 0
+  /// under the evidence gate (`--gate evidence`) and at most 10 under the motion gate.
+  int hold_frames = 30;
   int hold_min_points = 5;  ///< foreground points that keep a carried box, >= 1
-  /// Longest time [s] a box is carried after its detection, finite, >= 0: with frames far apart
-  /// (a sparse selection of a recording) the camera-frame box no longer fits.
-  double hold_seconds = 0.5;
+  /// Longest time [s] a box is carried after its detection, finite, >= 0, default 1: with frames
+  /// far apart (a sparse selection of a recording) the camera-frame box no longer fits. Also
+  /// the oldest frame segment_frames averages over.
+  double hold_seconds = 1.0;
   /// Temporal smoothing of the segmentation, frames >= 0 (0 = off), default 10; needs segment.
   /// Each drawn point's foreground logit is averaged with that of its nearest drawn point within
   /// one preprocess voxel leaf (camera frame) in each of up to this many earlier frames no older
