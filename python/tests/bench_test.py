@@ -165,7 +165,8 @@ def test_version(capsys):
     assert capsys.readouterr().out.strip() == f"ds3d-bench {ds3d.__version__}"
 
 
-@pytest.mark.parametrize("name, synthetic_cells", [("stress", 64), ("stress_heldout", 256)])
+@pytest.mark.parametrize("name, synthetic_cells",
+                         [("stress", 64), ("stress_heldout", 256), ("stress_fresh", 128)])
 def test_shipped_stress_suites_plan_every_mode(name, synthetic_cells, tmp_path):
     # The shipped suites load and plan as documented; a file: detector joined with another source
     # takes the sequence's own detections.
