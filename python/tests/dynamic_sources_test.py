@@ -263,7 +263,7 @@ def test_frame_smoothing_keeps_the_boxes():
 
 
 def test_hold_carries_missed_boxes_of_seated_people():
-    """hold_frames (default 10): boxes of earlier frames come after this frame's detections
+    """hold_frames (default 30): boxes of earlier frames come after this frame's detections
     while the part head sees foreground in them; hold_frames=0 reports the detections only."""
     import pathlib
     weights = pathlib.Path(__file__).resolve().parents[2] / "models" / "htx_lite_fast.safetensors"
