@@ -83,6 +83,19 @@ def test_image_boxes_and_keypoint_array(detections):
     loose = ds3d.DynamicObjects(boxes_3d=[CORNERS], boxes_3d_margin=[np.inf])
     assert ds3d.image_boxes(loose, CAM)[0].solid is None
     assert ds3d.DynamicObjects().support_plane is None
+    assert ds3d.DynamicObjects().ego_motion is None
+    step = np.eye(4)
+    step[:3, 3] = [0.01, 0, 0]
+    t, T = ds3d.DynamicObjects(ego_motion=(1.5, step)).ego_motion
+    assert t == 1.5 and np.array_equal(T, step)
+    with pytest.raises(ValueError, match="ego_motion's T_cur_ref must be a finite rigid"):
+        ds3d.DynamicObjects(ego_motion=(1.5, 2 * step))
+    with pytest.raises(ValueError, match=r"ego_motion's T_cur_ref must be a \(4, 4\)"):
+        ds3d.DynamicObjects(ego_motion=(1.5, np.eye(3)))
+    with pytest.raises(ValueError, match="ego_motion must be a tuple"):
+        ds3d.DynamicObjects(ego_motion=step)
+    with pytest.raises(ValueError, match="reference_timestamp must be finite"):
+        ds3d.DynamicObjects(ego_motion=(np.nan, step))
     with pytest.raises(ValueError, match="boxes_3d_margin"):
         ds3d.DynamicObjects(boxes_3d=[CORNERS], boxes_3d_margin=[0.1, 0.2])
     with pytest.raises(ValueError, match="boxes_3d_margin"):

@@ -85,6 +85,22 @@ def test_static_scene_reports_nothing_and_is_deterministic():
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
 
 
+def test_ego_motion_is_the_cameras_motion_since_the_reference():
+    frames = {}
+    reported = 0
+    for f, o, src in run("static_room", 8):
+        frames[f["timestamp"]] = f
+        if o.ego_motion is None:
+            continue
+        reported += 1
+        t_ref, T = o.ego_motion
+        assert T.shape == (4, 4) and T.dtype == np.float64 and t_ref < f["timestamp"]
+        truth = np.linalg.inv(f["T_world_cam"]) @ frames[t_ref]["T_world_cam"]
+        assert np.linalg.norm(T[:3, 3] - truth[:3, 3]) < 0.01
+    assert reported >= 5
+    assert all(o.ego_motion is None for _, o, _ in run("static_room", 4, max_acceleration=0.0))
+
+
 def test_params_stats_and_errors():
     p = ds3d.GeometricMotionParams()
     assert "num_features=800" in repr(p) and "segment_objects=true" in repr(p)

@@ -585,6 +585,38 @@ TEST(GeometricMotion, IgnoresFramesWithoutOrWithBadDepth) {
   EXPECT_FALSE(src.last_stats().pose_ok);
 }
 
+// DynamicObjects::ego_motion: the source reports the camera's motion since its reference frame
+// where its pose agrees with the motion prior's prediction (within max_acceleration · dt²), and
+// never without the prior. On a static room that is every tested frame but the first ones (before
+// a trusted motion the prediction is rest).
+TEST(GeometricMotion, ReportsItsEgoMotionWhereThePriorAgrees) {
+  const auto frames = ds3d::test::render_sequence(ds3d::synth::Scenario::kStaticRoom, 120, 1, 12);
+  const ds3d::PinholeCamera camera = ds3d::synth::SynthOptions{}.camera;
+  for (const double acc : {GeometricMotionParams{}.max_acceleration, 0.0}) {
+    GeometricMotionSource src({.max_acceleration = acc});
+    std::size_t reported = 0;
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      const ds3d::slam::DynamicObjects o = src.detect(frame_input(frames, i), camera);
+      if (!o.ego_motion) continue;
+      ++reported;
+      std::size_t r = 0;
+      while (r < i && frames[r].timestamp != o.ego_motion->reference_timestamp) ++r;
+      ASSERT_LT(r, i) << "frame " << i << ": the reference is not an earlier frame";
+      const Eigen::Isometry3d truth = frames[i].T_world_cam.inverse() * frames[r].T_world_cam;
+      const Eigen::Isometry3d err = truth.inverse() * o.ego_motion->T_cur_ref;
+      EXPECT_LT(err.translation().norm(), 0.01) << "frame " << i;
+      EXPECT_LT(Eigen::AngleAxisd(err.linear()).angle(), 0.01) << "frame " << i;
+    }
+    std::cout << "static_room, 12 frames, max_acceleration " << acc << ": ego-motion reported in "
+              << reported << " frames\n";
+    if (acc > 0) {
+      EXPECT_GE(reported, frames.size() - 3);
+    } else {
+      EXPECT_EQ(reported, 0U);
+    }
+  }
+}
+
 // The camera moves through a room with no humans: nothing may be flagged.
 TEST(GeometricMotion, StaticRoomStaysClean) {
   const Counts c = run_synthetic(ds3d::synth::Scenario::kStaticRoom, 60, {},

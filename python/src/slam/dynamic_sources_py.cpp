@@ -23,6 +23,7 @@ namespace py = pybind11;
 namespace pu = ds3d::py_slam;
 using ds3d::slam::DynamicObjects;
 using ds3d::slam::DynamicObjectSource;
+using ds3d::slam::EgoMotion;
 using ds3d::slam::FileSource;
 using ds3d::slam::FileSourceParams;
 using ds3d::slam::HdbscanMasker;
@@ -73,13 +74,41 @@ Eigen::Vector4f plane_from(const char* fn, const char* name, const py::object& o
   return q;
 }
 
+// ego_motion=(reference_timestamp, T_cur_ref): a finite time [s] and a (4, 4) rigid transform
+// (orthonormal rotation with determinant 1 to 1e-6, last row 0 0 0 1, finite translation [m]).
+EgoMotion ego_motion_from(const char* fn, const py::object& obj) {
+  DS3D_CHECK(py::isinstance<py::tuple>(obj) && py::len(obj) == 2, fn,
+             ": ego_motion must be a tuple (reference_timestamp, T_cur_ref) (got ",
+             pu::describe(obj), ")");
+  const auto t = py::cast<py::tuple>(obj);
+  EgoMotion em;
+  em.reference_timestamp = py::cast<double>(t[0]);
+  DS3D_CHECK(std::isfinite(em.reference_timestamp), fn,
+             ": ego_motion's reference_timestamp must be finite (got ", em.reference_timestamp,
+             ")");
+  const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(t[1]);
+  DS3D_CHECK(a && a.ndim() == 2 && a.shape(0) == 4 && a.shape(1) == 4, fn,
+             ": ego_motion's T_cur_ref must be a (4, 4) array (got ", pu::describe(t[1]), ")");
+  Eigen::Matrix4d m;
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) m(i, j) = a.at(i, j);
+  }
+  const Eigen::Matrix3d r = m.topLeftCorner<3, 3>();
+  const bool rigid = m.allFinite() && m.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1)) &&
+                     (r.transpose() * r - Eigen::Matrix3d::Identity()).norm() < 1e-6 &&
+                     std::abs(r.determinant() - 1.0) < 1e-6;
+  DS3D_CHECK(rigid, fn, ": ego_motion's T_cur_ref must be a finite rigid transform (got\n", m, ")");
+  em.T_cur_ref.matrix() = m;
+  return em;
+}
+
 DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores,
                             const py::object& boxes_3d, const py::object& pixel_mask,
                             const py::object& boxes_3d_margin, const py::object& support_plane,
                             const py::object& foreground_points,
                             const py::object& boxes_3d_segmented, float foreground_radius,
                             const py::object& background_points, const py::object& segment_plane,
-                            bool segment_outside_boxes) {
+                            bool segment_outside_boxes, const py::object& ego_motion) {
   constexpr const char* fn = "ds3d.DynamicObjects";
   DynamicObjects o;
   if (!boxes_2d.is_none()) o.boxes_2d = rects_from(fn, boxes_2d);
@@ -145,6 +174,7 @@ DynamicObjects objects_from(const py::object& boxes_2d, const py::object& scores
   if (!segment_plane.is_none())
     o.segmentation.segment_plane = plane_from(fn, "segment_plane", segment_plane);
   o.segmentation.segment_outside_boxes = segment_outside_boxes;
+  if (!ego_motion.is_none()) o.ego_motion = ego_motion_from(fn, ego_motion);
   if (!pixel_mask.is_none()) {
     const auto m = pu::exact<std::uint8_t>(fn, "pixel_mask", pixel_mask, "an (H, W) uint8 array");
     DS3D_CHECK(m.ndim() == 2, fn, ": pixel_mask must be an (H, W) uint8 array (got ",
@@ -213,7 +243,7 @@ void bind_dynamic_sources(py::module_& m) {
       "DynamicObjects(boxes_2d=None, scores=None, boxes_3d=None, pixel_mask=None,\n"
       "boxes_3d_margin=None, support_plane=None, foreground_points=None,\n"
       "boxes_3d_segmented=None, foreground_radius=0.2, background_points=None,\n"
-      "segment_plane=None, segment_outside_boxes=False) builds one from\n"
+      "segment_plane=None, segment_outside_boxes=False, ego_motion=None) builds one from\n"
       "your own detector's output (ValueError on bad shapes, non-finite values, inverted boxes).\n"
       "foreground_points (N, 3) [m, camera frame] and boxes_3d_segmented (K,) bool: a segmenting\n"
       "detector's points on its objects; the masker keeps the dynamic keypoints of a flagged box\n"
@@ -221,14 +251,17 @@ void bind_dynamic_sources(py::module_& m) {
       "off the objects) are given, only where the nearest of all these points is a foreground\n"
       "one (ds3d.HdbscanMasker); segment_plane (4,): the plane the segmentation left out (its\n"
       "keypoints count as off the segment); segment_outside_boxes: the segmentation covers the\n"
-      "whole frame and also marks keypoints outside the boxes.")
+      "whole frame and also marks keypoints outside the boxes. ego_motion\n"
+      "(reference_timestamp, T_cur_ref): the camera's motion from the earlier frame with that\n"
+      "timestamp [s] to this one, a (4, 4) rigid transform taking reference-camera points to\n"
+      "this camera [m] (the geometric source reports it; the frontend.source_motion_gate key).")
       .def(py::init(&objects_from), py::arg("boxes_2d") = py::none(),
            py::arg("scores") = py::none(), py::arg("boxes_3d") = py::none(),
            py::arg("pixel_mask") = py::none(), py::arg("boxes_3d_margin") = py::none(),
            py::arg("support_plane") = py::none(), py::arg("foreground_points") = py::none(),
            py::arg("boxes_3d_segmented") = py::none(), py::arg("foreground_radius") = 0.2F,
            py::arg("background_points") = py::none(), py::arg("segment_plane") = py::none(),
-           py::arg("segment_outside_boxes") = false)
+           py::arg("segment_outside_boxes") = false, py::arg("ego_motion") = py::none())
       .def_property_readonly(
           "boxes_2d",
           [](const DynamicObjects& o) {
@@ -315,6 +348,15 @@ void bind_dynamic_sources(py::module_& m) {
           "foreground_radius",
           [](const DynamicObjects& o) { return o.segmentation.foreground_radius; },
           "largest keypoint-to-foreground-point distance [m] for the segmentation check.")
+      .def_property_readonly(
+          "ego_motion",
+          [](const DynamicObjects& o) -> py::object {
+            if (!o.ego_motion) return py::none();
+            return py::make_tuple(o.ego_motion->reference_timestamp,
+                                  Eigen::Matrix4d(o.ego_motion->T_cur_ref.matrix()));
+          },
+          "(reference_timestamp [s], (4, 4) float64 T_cur_ref [m]): the camera's motion from "
+          "that earlier frame to this one, as the source measured it, or None.")
       .def_property_readonly(
           "pixel_mask",
           [](const DynamicObjects& o) -> py::object {

@@ -140,6 +140,7 @@ DynamicObjects CompositeSource::detect_prepared(const FrameInput& frame,
   out.boxes_3d.insert(out.boxes_3d.end(), more.boxes_3d.begin(), more.boxes_3d.end());
   merge_segmentation(out, std::move(flags), more, true);
   if (!out.support_plane) out.support_plane = more.support_plane;
+  if (!out.ego_motion) out.ego_motion = more.ego_motion;
   if (out.pixel_mask.empty()) {
     out.pixel_mask = more.pixel_mask;
   } else if (!more.pixel_mask.empty() && more.pixel_mask.size() == out.pixel_mask.size() &&

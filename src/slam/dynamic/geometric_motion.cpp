@@ -220,10 +220,20 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
   select_reference(work);
   work.pixel_sigma = params_.min_pixel_sigma;
   if (work.ref != nullptr) {
+    // The motion is reported only where it agrees with the motion prior's prediction: a first
+    // motion after a restart, or a strong consensus far from the prediction, is the largest
+    // consensus alone, which people who cover most of the view can win.
+    const std::optional<Eigen::Isometry3d> pred =
+        params_.max_acceleration > 0.0 ? predicted_T_cur_ref(work) : std::nullopt;
     match_and_pose(work);
     if (stats_.pose_ok) {
       work.cur.T_world_cam = work.ref->T_world_cam * work.T_cur_ref.inverse();
       work.cur.pose_valid = true;
+      const double dt = work.cur.timestamp - work.ref->timestamp;
+      if (pred && (pred->inverse() * work.T_cur_ref).translation().norm() <=
+                      params_.max_acceleration * dt * dt) {
+        out.ego_motion = EgoMotion{work.ref->timestamp, work.T_cur_ref};
+      }
       work.pixel_sigma = pixel_noise(work);
       test_keypoints(work);
     }

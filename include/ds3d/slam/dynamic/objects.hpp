@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
 #include "ds3d/camera.hpp"
@@ -63,6 +64,14 @@ struct Segmentation {
   float foreground_radius = 0.2F;
 };
 
+/// The camera's motion as a source measured it: from the frame with timestamp
+/// `reference_timestamp` (an earlier FrameInput::timestamp [s]) to this frame.
+struct EgoMotion {
+  double reference_timestamp = 0;  ///< [s], the earlier frame's FrameInput::timestamp
+  /// Rigid motion taking a point from the reference camera frame to this camera frame [m].
+  Eigen::Isometry3d T_cur_ref = Eigen::Isometry3d::Identity();
+};
+
 /// What a dynamic-object source found in one frame. All members are optional (empty = nothing).
 struct DynamicObjects {
   std::vector<cv::Rect2f> boxes_2d;  ///< image boxes of moving objects [px, raw image]
@@ -79,6 +88,9 @@ struct DynamicObjects {
   std::optional<Eigen::Vector4f> support_plane;
   /// The segmentation that confirms the keypoints of the flagged 3-D boxes (empty = none).
   Segmentation segmentation;
+  /// The camera's motion, from a source that estimates it on the static scene (the geometric
+  /// source, when it trusted its pose), or none. FrontendConfig::source_motion_gate uses it.
+  std::optional<EgoMotion> ego_motion;
 };
 
 /// What DynamicObjectSource::prepare computed for one frame; each source derives its own.
