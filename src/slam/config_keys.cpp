@@ -96,6 +96,12 @@ std::vector<ConfigKey> frontend_keys() {
           "[m/s^2] with a dynamic source, tracking adds a prior on the camera centre at the "
           "constant-velocity prediction, sigma = this x dt^2, Huber beyond 2 sigma (0 = off)"),
       key(
+          "frontend.source_motion_gate",
+          [](auto& c) -> auto& { return c.frontend.source_motion_gate; },
+          "[m/s^2] a tracked camera centre farther than this x dt^2 from the dynamic source's "
+          "own ego-motion (dt: since its reference frame) is tracked again from that motion "
+          "(0 = off)"),
+      key(
           "frontend.depth_edge_ratio", [](auto& c) -> auto& { return c.frontend.depth_edge_ratio; },
           "keypoints on a depth step (far > (1 + ratio) x near) at a dynamic region are dropped (0 "
           "= off)"),

@@ -68,6 +68,8 @@ void FrontendConfig::validate() const {
   DS3D_CHECK(std::isfinite(depth_edge_ratio) && depth_edge_ratio >= 0, f,
              ": depth_edge_ratio must be finite and >= 0 (got ", depth_edge_ratio, ")");
   DS3D_CHECK(refine_rounds >= 0, f, ": refine_rounds must be >= 0 (got ", refine_rounds, ")");
+  DS3D_CHECK(std::isfinite(source_motion_gate) && source_motion_gate >= 0, f,
+             ": source_motion_gate must be finite and >= 0 (got ", source_motion_gate, ")");
   DS3D_CHECK(retrack_first_frames >= 0, f, ": retrack_first_frames must be >= 0 (got ",
              retrack_first_frames, ")");
   DS3D_CHECK(std::isfinite(smooth_acceleration) && smooth_acceleration >= 0, f,

@@ -314,6 +314,8 @@ struct SlamFrontend::Impl {
   bool track_last_frame(FrameData& f, Eigen::Isometry3d& T_cw);  // odometry.cpp
   std::vector<int> local_keyframes(const FrameData& f);
   int track_local_map(FrameData& f, Eigen::Isometry3d& T_cw);
+  bool gate_by_source_motion(const EgoMotion& em, double timestamp, double dt, FrameData& f,
+                             Eigen::Isometry3d& T_cw, int& inliers);
   bool plausible(const Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred, double dt) const;
   bool track_from_prediction(FrameData& f, Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred,
                              double dt, int& inliers);

@@ -419,6 +419,42 @@ bool SlamFrontend::Impl::track_from_prediction(FrameData& f, Eigen::Isometry3d& 
   return true;
 }
 
+// FrontendConfig::source_motion_gate: the source's ego-motion applied to the pose of its
+// reference frame (a tracked frame of this map segment) against the tracked pose T_cw. True when
+// the retry from the source's motion replaced T_cw: as the geometric source's own second
+// hypothesis, it must lie less than half as far from that motion as the first pose.
+bool SlamFrontend::Impl::gate_by_source_motion(const EgoMotion& em, double timestamp, double dt,
+                                               FrameData& f, Eigen::Isometry3d& T_cw,
+                                               int& inliers) {
+  const double gap = timestamp - em.reference_timestamp;
+  if (!(gap > 0) || !(dt > 0)) return false;
+  const FrameRecord* ref = nullptr;
+  for (auto it = records.rbegin(); it != records.rend() && ref == nullptr; ++it) {
+    if (it->timestamp < em.reference_timestamp) break;
+    if (it->timestamp == em.reference_timestamp) ref = &*it;
+  }
+  if (ref == nullptr || !ref->tracked || ref->ref_kf < 0 ||
+      (!segment_starts.empty() && ref->ref_kf < segment_starts.back())) {
+    return false;
+  }
+  const Eigen::Isometry3d ref_T_cw =
+      ref->T_c_ref * keyframes[static_cast<std::size_t>(ref->ref_kf)].T_cw;
+  const Eigen::Isometry3d pred = em.T_cur_ref * ref_T_cw;
+  const auto off = [&](const Eigen::Isometry3d& T) {
+    return (T.inverse().translation() - pred.inverse().translation()).norm();
+  };
+  const double off0 = off(T_cw);
+  if (off0 <= cfg.source_motion_gate * gap * gap) return false;
+  FrameData retried = f;
+  Eigen::Isometry3d T = T_cw;
+  int n = 0;
+  if (!track_from_prediction(retried, T, pred, dt, n) || off(T) >= 0.5 * off0) return false;
+  f = std::move(retried);
+  T_cw = T;
+  inliers = n;
+  return true;
+}
+
 TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
   const auto t0 = Clock::now();
   const double c0 = thread_cpu_ms();
@@ -544,6 +580,11 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
         inliers = n;
         res.motion_gated = true;
       }
+    }
+    if (cfg.source_motion_gate > 0 && ok && !relocalized && pf.objects.ego_motion &&
+        gate_by_source_motion(*pf.objects.ego_motion, in.timestamp, in.timestamp - prev_ts, f, T_cw,
+                              inliers)) {
+      res.motion_gated = true;
     }
     // The velocity of the next frame's motion gate must come from two frames tracked here, not
     // from a re-anchored or relocalised one, whose pose may be far off.

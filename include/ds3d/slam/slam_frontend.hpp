@@ -134,6 +134,17 @@ struct FrontendConfig {
   /// the prior would carry their drag on (docs/slam.md, "Motion prior"). Relocalisation and the
   /// odometry fallback do not use it.
   double prior_acceleration = 10;
+  /// Source motion gate [m/s²], >= 0 (0 = off): when the dynamic source reports the camera's
+  /// motion (DynamicObjects::ego_motion: the geometric source, alone or combined), a tracked
+  /// pose whose camera centre lies farther than source_motion_gate · dt² (dt: from the source's
+  /// reference frame to this one) from that motion applied to the reference frame's pose is
+  /// tracked a second time from it, as the motion gate does from its prediction; the second
+  /// pose replaces the first when it has min_tracked_inliers inliers and lies less than half as
+  /// far from the source's motion. The source estimates its motion on two-frame matches only,
+  /// outside the objects it holds, under its own motion prior, so it is not dragged by map
+  /// points that were made on people before they were flagged (docs/slam.md, "Source motion
+  /// gate").
+  double source_motion_gate = 5;
   /// Keypoints on an occluding contour at a dynamic region are removed from tracking and
   /// mapping (0 = off), >= 0: those with a depth sample (at 4 and 8 px × their level's scale,
   /// 16 directions, and their own pixel) in a source box's image rectangle or on its pixel mask
