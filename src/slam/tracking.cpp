@@ -366,13 +366,22 @@ void SlamFrontend::Impl::set_prior(double dt) {
   prior.huber = 2.0;  // beyond 2 σ a constant pull: matches that contradict the prediction win
 }
 
+namespace {
+
+// Distance between the camera centres of two world-to-camera poses [m].
+double centre_distance(const Eigen::Isometry3d& a_cw, const Eigen::Isometry3d& b_cw) {
+  return (a_cw.inverse().translation() - b_cw.inverse().translation()).norm();
+}
+
+}  // namespace
+
 // FrontendConfig::max_acceleration / max_angular_acceleration: can the camera have moved from the
 // constant-velocity prediction `pred` to `T_cw` in the `dt` seconds since the last frame?
 bool SlamFrontend::Impl::plausible(const Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred,
                                    double dt) const {
   const double dt2 = dt * dt;
   if (cfg.max_acceleration > 0) {
-    const double moved = (T_cw.inverse().translation() - pred.inverse().translation()).norm();
+    const double moved = centre_distance(T_cw, pred);
     if (moved > cfg.max_acceleration * dt2) return false;
   }
   if (cfg.max_angular_acceleration > 0) {
@@ -440,15 +449,13 @@ bool SlamFrontend::Impl::gate_by_source_motion(const EgoMotion& em, double times
   const Eigen::Isometry3d ref_T_cw =
       ref->T_c_ref * keyframes[static_cast<std::size_t>(ref->ref_kf)].T_cw;
   const Eigen::Isometry3d pred = em.T_cur_ref * ref_T_cw;
-  const auto off = [&](const Eigen::Isometry3d& T) {
-    return (T.inverse().translation() - pred.inverse().translation()).norm();
-  };
-  const double off0 = off(T_cw);
+  const double off0 = centre_distance(T_cw, pred);
   if (off0 <= cfg.source_motion_gate * gap * gap) return false;
   FrameData retried = f;
   Eigen::Isometry3d T = T_cw;
   int n = 0;
-  if (!track_from_prediction(retried, T, pred, dt, n) || off(T) >= 0.5 * off0) return false;
+  if (!track_from_prediction(retried, T, pred, dt, n) || centre_distance(T, pred) >= 0.5 * off0)
+    return false;
   f = std::move(retried);
   T_cw = T;
   inliers = n;

@@ -202,6 +202,15 @@ std::vector<cv::DMatch> mutual_ratio_matches(const cv::Mat& a, const cv::Mat& b,
 
 namespace ds3d::slam {
 
+namespace {
+
+// Distance between the camera centres of two poses T_cur_ref that share the reference [m].
+double centre_gap(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return (a.inverse() * b).translation().norm();
+}
+
+}  // namespace
+
 GeometricMotionSource::GeometricMotionSource(const GeometricMotionParams& params)
     : params_((params.validate(), params)), extractor_(orb_params(params)) {}
 
@@ -230,8 +239,7 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
       work.cur.T_world_cam = work.ref->T_world_cam * work.T_cur_ref.inverse();
       work.cur.pose_valid = true;
       const double dt = work.cur.timestamp - work.ref->timestamp;
-      if (pred && (pred->inverse() * work.T_cur_ref).translation().norm() <=
-                      params_.max_acceleration * dt * dt) {
+      if (pred && centre_gap(*pred, work.T_cur_ref) <= params_.max_acceleration * dt * dt) {
         out.ego_motion = EgoMotion{work.ref->timestamp, work.T_cur_ref};
       }
       work.pixel_sigma = pixel_noise(work);
@@ -459,15 +467,6 @@ std::optional<Eigen::Isometry3d> GeometricMotionSource::predicted_T_cur_ref(
   p.translation() = last_motion_.translation() * s;
   return p;
 }
-
-namespace {
-
-// Distance between the camera centres of two poses T_cur_ref that share the reference [m].
-double centre_gap(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-  return (a.inverse() * b).translation().norm();
-}
-
-}  // namespace
 
 void GeometricMotionSource::apply_motion_prior(const Work& work,
                                                const std::vector<cv::Point3f>& obj,
