@@ -6,9 +6,11 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <initializer_list>
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -44,6 +46,27 @@ FrontendConfig synth_config() {
   FrontendConfig c;
   c.camera = ds3d::synth::SynthOptions{}.camera;
   return c;
+}
+
+// Each of `values` for the key `member` (named `name`), the rest of the configuration the synthetic
+// default, must make SlamFrontend's constructor throw InvalidArgument naming the key and the value.
+template <class T>
+void expect_refused(T FrontendConfig::*member, const std::string& name,
+                    std::initializer_list<T> values) {
+  for (const T v : values) {
+    FrontendConfig bad = synth_config();
+    bad.*member = v;
+    try {
+      const SlamFrontend slam{bad};
+      ADD_FAILURE() << name << " = " << v << " was accepted";
+    } catch (const ds3d::InvalidArgument& e) {
+      const std::string what = e.what();
+      std::ostringstream value;
+      value << v;
+      EXPECT_NE(what.find(name), std::string::npos) << what;
+      EXPECT_NE(what.find(value.str()), std::string::npos) << what;
+    }
+  }
 }
 
 struct SlamRun {
@@ -435,11 +458,7 @@ TEST(SlamFrontend, DepthEdgeKeypointsAtDynamicRegionsAreRemoved) {
       EXPECT_GT(edges, 0);
     }
   }
-  FrontendConfig bad = base;
-  bad.depth_edge_ratio = -0.1;
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
-  bad.depth_edge_ratio = std::nan("");
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+  expect_refused(&FrontendConfig::depth_edge_ratio, "depth_edge_ratio", {-0.1, std::nan("")});
 }
 
 // The disparity term (disparity_sigma > 0) changes the poses, keeps a static room as accurate as
@@ -461,11 +480,7 @@ TEST(SlamFrontend, DisparityTermKeepsAStaticRoomAccurate) {
   }
   EXPECT_TRUE(differs);
   EXPECT_LE(on.ate, 0.005);
-  FrontendConfig bad = synth_config();
-  bad.disparity_sigma = -0.5;
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
-  bad.disparity_sigma = std::nan("");
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+  expect_refused(&FrontendConfig::disparity_sigma, "disparity_sigma", {-0.5, std::nan("")});
 }
 
 // The motion gate (max_acceleration, max_angular_acceleration) never fires on a smooth camera
@@ -487,12 +502,9 @@ TEST(SlamFrontend, MotionGateLeavesPlausibleMotionAlone) {
         << "frame " << i;
   }
   EXPECT_LE(on.ate, 0.005);
-  FrontendConfig bad = synth_config();
-  bad.max_acceleration = -1;
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
-  bad.max_acceleration = 0;
-  bad.max_angular_acceleration = std::nan("");
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+  expect_refused(&FrontendConfig::max_acceleration, "max_acceleration", {-1.0, std::nan("")});
+  expect_refused(&FrontendConfig::max_angular_acceleration, "max_angular_acceleration",
+                 {-1.0, std::nan("")});
 }
 
 // The ground-truth dynamic mask of each frame (by FrameInput::index) as the dynamic filter: every
@@ -596,11 +608,7 @@ TEST(SlamFrontend, MotionPriorHoldsThePoseThroughMissedDetections) {
             << " m without the motion prior, " << on.ate << " m with it\n";
   EXPECT_LE(on.ate, 0.02);
   EXPECT_LT(on.ate, 0.5 * off.ate);
-  FrontendConfig bad = synth_config();
-  bad.prior_acceleration = -1;
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
-  bad.prior_acceleration = std::nan("");
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+  expect_refused(&FrontendConfig::prior_acceleration, "prior_acceleration", {-1.0, std::nan("")});
 }
 
 // The ground-truth masks from frame `from` on, nothing before: a source that needs a few frames
@@ -640,9 +648,7 @@ TEST(SlamFrontend, RetrackFirstFramesMatchesTheStartAgainstTheFinalMap) {
   std::cout << "crowd_board seed 1, 20 frames, nothing flagged before frame 3: ATE " << off.ate
             << " m without re-tracking the first frames, " << on.ate << " m with it\n";
   EXPECT_LT(on.ate, 0.75 * off.ate);
-  FrontendConfig bad = synth_config();
-  bad.retrack_first_frames = -1;
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+  expect_refused(&FrontendConfig::retrack_first_frames, "retrack_first_frames", {-1});
 }
 
 // A source that flags nothing and reports the camera's true motion over a two-frame gap, as the
@@ -684,11 +690,7 @@ TEST(SlamFrontend, SourceMotionGateHoldsThePoseWhereTheMapFollowsPeople) {
             << " frames gated)\n";
   EXPECT_GE(gated, 1);
   EXPECT_LT(on.ate, 0.7 * off.ate);
-  FrontendConfig bad = synth_config();
-  bad.source_motion_gate = -1;
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
-  bad.source_motion_gate = std::nan("");
-  EXPECT_THROW(SlamFrontend{bad}, ds3d::InvalidArgument);
+  expect_refused(&FrontendConfig::source_motion_gate, "source_motion_gate", {-1.0, std::nan("")});
 }
 
 // Without a dynamic source the prior is not used: the people's matches shape the velocity too,
