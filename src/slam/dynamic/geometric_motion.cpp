@@ -232,14 +232,14 @@ DynamicObjects GeometricMotionSource::detect(const FrameInput& frame, const Pinh
     // The motion is reported only where it agrees with the motion prior's prediction: a first
     // motion after a restart, or a strong consensus far from the prediction, is the largest
     // consensus alone, which people who cover most of the view can win.
-    const std::optional<Eigen::Isometry3d> pred =
-        params_.max_acceleration > 0.0 ? predicted_T_cur_ref(work) : std::nullopt;
+    if (params_.max_acceleration > 0.0) work.pred = predicted_T_cur_ref(work);
     match_and_pose(work);
     if (stats_.pose_ok) {
       work.cur.T_world_cam = work.ref->T_world_cam * work.T_cur_ref.inverse();
       work.cur.pose_valid = true;
       const double dt = work.cur.timestamp - work.ref->timestamp;
-      if (pred && centre_gap(*pred, work.T_cur_ref) <= params_.max_acceleration * dt * dt) {
+      if (work.pred &&
+          centre_gap(*work.pred, work.T_cur_ref) <= params_.max_acceleration * dt * dt) {
         out.ego_motion = EgoMotion{work.ref->timestamp, work.T_cur_ref};
       }
       work.pixel_sigma = pixel_noise(work);
@@ -472,8 +472,7 @@ void GeometricMotionSource::apply_motion_prior(const Work& work,
                                                const std::vector<cv::Point3f>& obj,
                                                const std::vector<cv::Point2f>& img,
                                                const cv::Matx33d& K, PoseHypothesis& best) {
-  if (!(params_.max_acceleration > 0.0)) return;
-  const std::optional<Eigen::Isometry3d> pred = predicted_T_cur_ref(work);
+  const std::optional<Eigen::Isometry3d>& pred = work.pred;
   if (!pred) return;
   const double dt = work.cur.timestamp - work.ref->timestamp;
   const PinholeCamera& cs = work.cs;

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -100,6 +101,9 @@ struct GeometricMotionSource::Work {
   double ky = 1.0;
   std::vector<std::pair<std::size_t, std::size_t>> pairs;  // matches (current, reference)
   Eigen::Isometry3d T_cur_ref = Eigen::Isometry3d::Identity();
+  // The motion prior's constant-velocity prediction of T_cur_ref (max_acceleration; none when off
+  // or without a trusted motion), taken before this frame's motion is known.
+  std::optional<Eigen::Isometry3d> pred;
   double pixel_sigma = 0;  // σ_px of this frame [px]
   std::vector<Tested> tested;
   std::vector<Candidate> found;
