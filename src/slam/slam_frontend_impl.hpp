@@ -241,6 +241,16 @@ struct SlamFrontend::Impl {
   int num_merged_segments = 0;
   int num_interpolated_frames = 0;
   bool just_relocalized = false;
+  // Map points whose MapPoint::visible / found this frame's tracking raised, one entry per
+  // raise, so that a hypothesis not kept can take its raises back (settle_retry).
+  std::vector<int> raised_visible;
+  std::vector<int> raised_found;
+  // Where a retry of the pose started: the raises so far and the reference keyframe.
+  struct RetryMark {
+    std::size_t visible;
+    std::size_t found;
+    int ref_kf;
+  };
 
   // Trajectory: per frame, pose relative to its reference keyframe.
   struct FrameRecord {
@@ -319,6 +329,10 @@ struct SlamFrontend::Impl {
   bool plausible(const Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred, double dt) const;
   bool track_from_prediction(FrameData& f, Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred,
                              double dt, int& inliers);
+  [[nodiscard]] RetryMark retry_mark() const {
+    return {raised_visible.size(), raised_found.size(), ref_kf};
+  }
+  void settle_retry(const RetryMark& m, bool kept);
   TrackResult track(PreparedFrame pf);
 
   // ---- mapping.cpp: map points, fusion, local BA scheduling and applying

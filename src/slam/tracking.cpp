@@ -67,6 +67,7 @@ int SlamFrontend::Impl::search_by_projection(FrameData& f, const Eigen::Isometry
       level = predict_level(p, dist);
       radius *= (view_cos > 0.998 ? 2.5 : 4.0);
       ++p.visible;
+      raised_visible.push_back(pid);
     } else {
       level = predict_level(p, dist);
     }
@@ -351,7 +352,9 @@ int SlamFrontend::Impl::track_local_map(FrameData& f, Eigen::Isometry3d& T_cw) {
   search_by_projection(f, T_cw, cand, just_relocalized ? 5.0 : 3.0, true, stamp);
   const int inliers = optimize_frame(f, T_cw);
   for (const int pid : f.points) {
-    if (pid >= 0) ++points[static_cast<std::size_t>(pid)].found;
+    if (pid < 0) continue;
+    ++points[static_cast<std::size_t>(pid)].found;
+    raised_found.push_back(pid);
   }
   return inliers;
 }
@@ -428,6 +431,33 @@ bool SlamFrontend::Impl::track_from_prediction(FrameData& f, Eigen::Isometry3d& 
   return true;
 }
 
+namespace {
+
+// Takes back the raises log[from, to) of a map-point counter (MapPoint::visible or found) and
+// removes them from the log.
+void take_back(std::vector<MapPoint>& points, std::vector<int>& log, std::size_t from,
+               std::size_t to, int MapPoint::*counter) {
+  for (std::size_t i = from; i < to; ++i) --(points[static_cast<std::size_t>(log[i])].*counter);
+  log.erase(log.begin() + static_cast<std::ptrdiff_t>(from),
+            log.begin() + static_cast<std::ptrdiff_t>(to));
+}
+
+}  // namespace
+
+// After a retry of the pose that started at `m`: the map's counters and the reference keyframe
+// stay those of the hypothesis kept, as if the other had never been tried (the counters decide
+// which map points are culled).
+void SlamFrontend::Impl::settle_retry(const RetryMark& m, bool kept) {
+  if (kept) {
+    take_back(points, raised_visible, 0, m.visible, &MapPoint::visible);
+    take_back(points, raised_found, 0, m.found, &MapPoint::found);
+  } else {
+    take_back(points, raised_visible, m.visible, raised_visible.size(), &MapPoint::visible);
+    take_back(points, raised_found, m.found, raised_found.size(), &MapPoint::found);
+    ref_kf = m.ref_kf;
+  }
+}
+
 // FrontendConfig::source_motion_gate: the source's ego-motion applied to the pose of its
 // reference frame (a tracked frame of this map segment) against the tracked pose T_cw. True when
 // the retry from the source's motion replaced T_cw: as the geometric source's own second
@@ -454,8 +484,11 @@ bool SlamFrontend::Impl::gate_by_source_motion(const EgoMotion& em, double times
   FrameData retried = f;
   Eigen::Isometry3d T = T_cw;
   int n = 0;
-  if (!track_from_prediction(retried, T, pred, dt, n) || centre_distance(T, pred) >= 0.5 * off0)
-    return false;
+  const RetryMark mark = retry_mark();
+  const bool kept =
+      track_from_prediction(retried, T, pred, dt, n) && centre_distance(T, pred) < 0.5 * off0;
+  settle_retry(mark, kept);
+  if (!kept) return false;
   f = std::move(retried);
   T_cw = T;
   inliers = n;
@@ -474,6 +507,8 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
   const double prev_ts = last_timestamp;
   last_timestamp = in.timestamp;
   apply_ba_if_due(false);
+  raised_visible.clear();
+  raised_found.clear();
 
   TrackResult res;
   res.index = in.index;
@@ -581,7 +616,10 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
       FrameData retried = f;
       Eigen::Isometry3d T = T_cw;
       int n = 0;
-      if (track_from_prediction(retried, T, pred, in.timestamp - prev_ts, n)) {
+      const RetryMark mark = retry_mark();
+      const bool held = track_from_prediction(retried, T, pred, in.timestamp - prev_ts, n);
+      settle_retry(mark, held);
+      if (held) {
         f = std::move(retried);
         T_cw = T;
         inliers = n;
