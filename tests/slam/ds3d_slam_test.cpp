@@ -558,4 +558,17 @@ TEST(Tools, EveryToolAnswersVersionAndHelp) {
   }
 }
 
+// ds3d-slam's --help says which --dynamic to use when, with the default first.
+TEST(Tools, SlamHelpSaysWhichDynamicModeToUse) {
+  if (!fs::exists(ds3d::test::tool_path("ds3d-slam"))) GTEST_SKIP() << "ds3d-slam not built";
+  const auto r = ds3d::test::run_tool("ds3d-slam", "--help");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto table = r.output.find("Which --dynamic to use");
+  ASSERT_NE(table, std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("geometric (default)", table), std::string::npos) << r.output;
+  for (const std::string mode :
+       {"none", "htx+geometric", "htx --gate motion", "file:PATH+geometric"})
+    EXPECT_NE(r.output.find("  " + mode + " ", table), std::string::npos) << mode;
+}
+
 }  // namespace
