@@ -102,6 +102,11 @@ std::vector<ConfigKey> frontend_keys() {
           "own ego-motion (dt: since its reference frame) is tracked again from that motion "
           "(0 = off)"),
       key(
+          "frontend.hold_source_motion",
+          [](auto& c) -> auto& { return c.frontend.hold_source_motion; },
+          "with the source motion gate: where the motion gate refused the pose too and neither "
+          "retry found one, the source's ego-motion is the pose"),
+      key(
           "frontend.depth_edge_ratio", [](auto& c) -> auto& { return c.frontend.depth_edge_ratio; },
           "keypoints on a depth step (far > (1 + ratio) x near) at a dynamic region are dropped (0 "
           "= off)"),

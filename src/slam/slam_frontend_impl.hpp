@@ -325,7 +325,8 @@ struct SlamFrontend::Impl {
   std::vector<int> local_keyframes(const FrameData& f);
   int track_local_map(FrameData& f, Eigen::Isometry3d& T_cw);
   bool gate_by_source_motion(const EgoMotion& em, double timestamp, double dt, FrameData& f,
-                             Eigen::Isometry3d& T_cw, int& inliers);
+                             Eigen::Isometry3d& T_cw, int& inliers, bool implausible);
+  int keep_agreeing(FrameData& f, const Eigen::Isometry3d& T_cw) const;
   bool plausible(const Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred, double dt) const;
   bool track_from_prediction(FrameData& f, Eigen::Isometry3d& T_cw, const Eigen::Isometry3d& pred,
                              double dt, int& inliers);

@@ -394,6 +394,26 @@ bool SlamFrontend::Impl::plausible(const Eigen::Isometry3d& T_cw, const Eigen::I
   return true;
 }
 
+// Unmatches the matches of `f` that the pose `T_cw` does not explain: behind the camera, or
+// beyond 4 × the χ² thresholds. Returns how many are left.
+int SlamFrontend::Impl::keep_agreeing(FrameData& f, const Eigen::Isometry3d& T_cw) const {
+  int agree = 0;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    if (f.points[i] < 0) continue;
+    const Observation o = observation(f, i);
+    bool front = false;
+    const double chi2 =
+        reprojection_chi2(k, T_cw, points[static_cast<std::size_t>(f.points[i])].pos, o, &front);
+    const double th = 4.0 * (o.stereo() ? cfg.pose.chi2_stereo : cfg.pose.chi2_mono);
+    if (!front || chi2 > th) {
+      f.points[i] = -1;
+    } else {
+      ++agree;
+    }
+  }
+  return agree;
+}
+
 // The motion gate's second hypothesis (FrontendConfig::max_acceleration): the last frame's points
 // matched at the prediction, only the matches that agree with it (4 × the χ² threshold) start the
 // pose-only optimisation, then the local map. True (T_cw and inliers set) when that pose is
@@ -409,20 +429,7 @@ bool SlamFrontend::Impl::track_from_prediction(FrameData& f, Eigen::Isometry3d& 
   std::fill(f.points.begin(), f.points.end(), -1);
   Eigen::Isometry3d T = pred;
   search_by_projection(f, T, cand, 15.0, false, frame_counter);
-  int agree = 0;
-  for (std::size_t i = 0; i < f.size(); ++i) {
-    if (f.points[i] < 0) continue;
-    const Observation o = observation(f, i);
-    bool front = false;
-    const double chi2 =
-        reprojection_chi2(k, pred, points[static_cast<std::size_t>(f.points[i])].pos, o, &front);
-    const double th = 4.0 * (o.stereo() ? cfg.pose.chi2_stereo : cfg.pose.chi2_mono);
-    if (!front || chi2 > th) {
-      f.points[i] = -1;
-    } else {
-      ++agree;
-    }
-  }
+  const int agree = keep_agreeing(f, pred);
   if (agree < 10 || optimize_frame(f, T) < 10) return false;
   const int n = track_local_map(f, T);
   if (n < cfg.min_tracked_inliers || !plausible(T, pred, dt)) return false;
@@ -461,10 +468,12 @@ void SlamFrontend::Impl::settle_retry(const RetryMark& m, bool kept) {
 // FrontendConfig::source_motion_gate: the source's ego-motion applied to the pose of its
 // reference frame (a tracked frame of this map segment) against the tracked pose T_cw. True when
 // the retry from the source's motion replaced T_cw: as the geometric source's own second
-// hypothesis, it must lie less than half as far from that motion as the first pose.
+// hypothesis, it must lie less than half as far from that motion as the first pose. Where the
+// motion gate has refused T_cw too (`implausible`) and the retry fails, the source's motion is
+// the pose (FrontendConfig::hold_source_motion).
 bool SlamFrontend::Impl::gate_by_source_motion(const EgoMotion& em, double timestamp, double dt,
                                                FrameData& f, Eigen::Isometry3d& T_cw,
-                                               int& inliers) {
+                                               int& inliers, bool implausible) {
   const double gap = timestamp - em.reference_timestamp;
   if (!(gap > 0) || !(dt > 0)) return false;
   const FrameRecord* ref = nullptr;
@@ -488,10 +497,17 @@ bool SlamFrontend::Impl::gate_by_source_motion(const EgoMotion& em, double times
   const bool kept =
       track_from_prediction(retried, T, pred, dt, n) && centre_distance(T, pred) < 0.5 * off0;
   settle_retry(mark, kept);
-  if (!kept) return false;
-  f = std::move(retried);
-  T_cw = T;
-  inliers = n;
+  if (kept) {
+    f = std::move(retried);
+    T_cw = T;
+    inliers = n;
+    return true;
+  }
+  if (!implausible || !cfg.hold_source_motion) return false;
+  // FrontendConfig::hold_source_motion: the source's motion is the pose, with the first pose's
+  // matches that it explains.
+  T_cw = pred;
+  inliers = keep_agreeing(f, pred);
   return true;
 }
 
@@ -609,6 +625,7 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
     }
     const bool gate = cfg.max_acceleration > 0 || cfg.max_angular_acceleration > 0;
     const Eigen::Isometry3d pred = gate ? velocity * last_T_cw : T_cw;
+    bool implausible = false;  // the motion gate refused the pose and its retry found none
     if (gate && ok && !relocalized && velocity_trusted && in.timestamp > prev_ts &&
         !plausible(T_cw, pred, in.timestamp - prev_ts)) {
       // Two hypotheses: keep the first pose unless tracking from the prediction gives a
@@ -625,10 +642,11 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
         inliers = n;
         res.motion_gated = true;
       }
+      implausible = !held;
     }
     if (cfg.source_motion_gate > 0 && ok && !relocalized && pf.objects.ego_motion &&
         gate_by_source_motion(*pf.objects.ego_motion, in.timestamp, in.timestamp - prev_ts, f, T_cw,
-                              inliers)) {
+                              inliers, implausible)) {
       res.motion_gated = true;
     }
     // The velocity of the next frame's motion gate must come from two frames tracked here, not

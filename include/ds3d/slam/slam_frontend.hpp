@@ -145,6 +145,13 @@ struct FrontendConfig {
   /// points that were made on people before they were flagged (docs/slam.md, "Source motion
   /// gate").
   double source_motion_gate = 5;
+  /// With the source motion gate: where the motion gate has refused the tracked pose as well
+  /// (farther than max_acceleration / max_angular_acceleration from the constant-velocity
+  /// prediction) and neither retry found a pose, the source's motion is the frame's pose, with
+  /// the matches it explains (4 × the χ² thresholds). Two witnesses that never see the map then
+  /// outvote a map whose points follow people who stood still when they were made (docs/slam.md,
+  /// "Source motion gate").
+  bool hold_source_motion = true;
   /// Keypoints on an occluding contour at a dynamic region are removed from tracking and
   /// mapping (0 = off), >= 0: those with a depth sample (at 4 and 8 px × their level's scale,
   /// 16 directions, and their own pixel) in a source box's image rectangle or on its pixel mask
