@@ -472,8 +472,8 @@ void SlamFrontend::Impl::settle_retry(const RetryMark& m, bool kept) {
 // motion gate has refused T_cw too (`implausible`) and the retry fails, the source's motion is
 // the pose (FrontendConfig::hold_source_motion).
 bool SlamFrontend::Impl::gate_by_source_motion(const EgoMotion& em, double timestamp, double dt,
-                                               FrameData& f, Eigen::Isometry3d& T_cw,
-                                               int& inliers, bool implausible) {
+                                               FrameData& f, Eigen::Isometry3d& T_cw, int& inliers,
+                                               bool implausible) {
   const double gap = timestamp - em.reference_timestamp;
   if (!(gap > 0) || !(dt > 0)) return false;
   const FrameRecord* ref = nullptr;
