@@ -334,6 +334,8 @@ struct SlamFrontend::Impl {
     return {raised_visible.size(), raised_found.size(), ref_kf};
   }
   void settle_retry(const RetryMark& m, bool kept);
+  bool retry_pose(FrameData& f, Eigen::Isometry3d& T_cw, int& inliers,
+                  const Eigen::Isometry3d& pred, double dt, double within);
   TrackResult track(PreparedFrame pf);
 
   // ---- mapping.cpp: map points, fusion, local BA scheduling and applying

@@ -465,6 +465,25 @@ void SlamFrontend::Impl::settle_retry(const RetryMark& m, bool kept) {
   }
 }
 
+// A second hypothesis for the frame's pose: tracked from `pred` (track_from_prediction), it
+// replaces f, T_cw and inliers when it succeeds and its camera centre lies within `within` [m]
+// of pred's; either way only the hypothesis kept counts in the map (settle_retry).
+bool SlamFrontend::Impl::retry_pose(FrameData& f, Eigen::Isometry3d& T_cw, int& inliers,
+                                    const Eigen::Isometry3d& pred, double dt, double within) {
+  FrameData retried = f;
+  Eigen::Isometry3d T = T_cw;
+  int n = 0;
+  const RetryMark mark = retry_mark();
+  const bool kept =
+      track_from_prediction(retried, T, pred, dt, n) && centre_distance(T, pred) < within;
+  settle_retry(mark, kept);
+  if (!kept) return false;
+  f = std::move(retried);
+  T_cw = T;
+  inliers = n;
+  return true;
+}
+
 // FrontendConfig::source_motion_gate: the source's ego-motion applied to the pose of its
 // reference frame (a tracked frame of this map segment) against the tracked pose T_cw. True when
 // the retry from the source's motion replaced T_cw: as the geometric source's own second
@@ -485,24 +504,10 @@ bool SlamFrontend::Impl::gate_by_source_motion(const EgoMotion& em, double times
       (!segment_starts.empty() && ref->ref_kf < segment_starts.back())) {
     return false;
   }
-  const Eigen::Isometry3d ref_T_cw =
-      ref->T_c_ref * keyframes[static_cast<std::size_t>(ref->ref_kf)].T_cw;
-  const Eigen::Isometry3d pred = em.T_cur_ref * ref_T_cw;
+  const Eigen::Isometry3d pred = em.T_cur_ref * record_pose(*ref);
   const double off0 = centre_distance(T_cw, pred);
   if (off0 <= cfg.source_motion_gate * gap * gap) return false;
-  FrameData retried = f;
-  Eigen::Isometry3d T = T_cw;
-  int n = 0;
-  const RetryMark mark = retry_mark();
-  const bool kept =
-      track_from_prediction(retried, T, pred, dt, n) && centre_distance(T, pred) < 0.5 * off0;
-  settle_retry(mark, kept);
-  if (kept) {
-    f = std::move(retried);
-    T_cw = T;
-    inliers = n;
-    return true;
-  }
+  if (retry_pose(f, T_cw, inliers, pred, dt, 0.5 * off0)) return true;
   if (!implausible || !cfg.hold_source_motion) return false;
   // FrontendConfig::hold_source_motion: the source's motion is the pose, with the first pose's
   // matches that it explains.
@@ -630,19 +635,9 @@ TrackResult SlamFrontend::Impl::track(PreparedFrame pf) {
         !plausible(T_cw, pred, in.timestamp - prev_ts)) {
       // Two hypotheses: keep the first pose unless tracking from the prediction gives a
       // plausible one.
-      FrameData retried = f;
-      Eigen::Isometry3d T = T_cw;
-      int n = 0;
-      const RetryMark mark = retry_mark();
-      const bool held = track_from_prediction(retried, T, pred, in.timestamp - prev_ts, n);
-      settle_retry(mark, held);
-      if (held) {
-        f = std::move(retried);
-        T_cw = T;
-        inliers = n;
-        res.motion_gated = true;
-      }
-      implausible = !held;
+      res.motion_gated = retry_pose(f, T_cw, inliers, pred, in.timestamp - prev_ts,
+                                    std::numeric_limits<double>::infinity());
+      implausible = !res.motion_gated;
     }
     if (cfg.source_motion_gate > 0 && ok && !relocalized && pf.objects.ego_motion &&
         gate_by_source_motion(*pf.objects.ego_motion, in.timestamp, in.timestamp - prev_ts, f, T_cw,
